@@ -1,0 +1,210 @@
+"""Trivariate Bernstein free-form deformation lattice (paper Eq 2-5).
+
+A lattice has ``shape = (l, m, n)`` nodes along its three axes (2 to 10 each). Its frame is
+an affine map: a point ``x`` has lattice coordinates ``(u, v, w) = (x - origin) @ inv(axes)``,
+where the rows of ``axes`` are the three edge vectors of the lattice box (this is the paper's
+4x3 matrix ``A`` of Eq 5, split into its linear part and its translation). The deformed point
+is ``sum_ijk B_i(u) B_j(v) B_k(w) X_ijk`` (Eq 4).
+
+Nodes are stored as an ``(l*m*n, 3)`` array in the paper's order (Eq 4): ``i`` slowest,
+``k`` fastest, so node ``(i, j, k)`` is row ``(i*m + j)*n + k``.
+
+The rest lattice is a regular grid, so the FFD with rest nodes is the identity (Bernstein
+polynomials reproduce linear functions).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import comb
+
+import numpy as np
+
+from core.errors import IsochorError
+
+MIN_NODES, MAX_NODES = 2, 10
+
+#: Above this many basis entries (points x nodes) a point basis keeps the factored
+#: tensor-product form instead of one dense matrix (64 MB of float64).
+DENSE_LIMIT = 8_000_000
+
+
+def bernstein(degree: int, t: np.ndarray) -> np.ndarray:
+    """Bernstein polynomials ``B_i^degree(t)`` for i = 0..degree.
+
+    Parameters
+    ----------
+    t : (p,) float64
+
+    Returns
+    -------
+    (p, degree + 1) float64
+    """
+    t = np.asarray(t, dtype=np.float64)[:, None]
+    i = np.arange(degree + 1)
+    coef = np.array([comb(degree, k) for k in i], dtype=np.float64)
+    return coef * t**i * (1.0 - t) ** (degree - i)
+
+
+class PointBasis:
+    """The FFD basis of a fixed point set: maps node positions to point positions.
+
+    The weight of node (i, j, k) on point p is ``Bu[p, i] * Bv[p, j] * Bw[p, k]``. Small point
+    sets keep the dense ``(p, nodes)`` matrix (one matmul per evaluation); large ones keep
+    the factored form ``Buv (p, l*m)`` and ``Bw (p, n)``: memory ``p*(l*m + n)`` instead of
+    ``p*l*m*n``.
+    """
+
+    def __init__(self, bu: np.ndarray, bv: np.ndarray, bw: np.ndarray) -> None:
+        p, l = bu.shape
+        m, n = bv.shape[1], bw.shape[1]
+        self.shape = (l, m, n)
+        self.n_points = p
+        buv = (bu[:, :, None] * bv[:, None, :]).reshape(p, l * m)
+        if p * l * m * n <= DENSE_LIMIT:
+            self.dense: np.ndarray | None = (buv[:, :, None] * bw[:, None, :]).reshape(p, -1)
+            self.buv = self.bw = None
+        else:
+            self.dense = None
+            self.buv = buv
+            self.bw = np.ascontiguousarray(bw)
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the basis, in bytes."""
+        if self.dense is not None:
+            return int(self.dense.nbytes)
+        return int(self.buv.nbytes + self.bw.nbytes)
+
+    def apply(self, nodes: np.ndarray) -> np.ndarray:
+        """Deformed points ``(p, 3)`` for node positions ``(l*m*n, 3)``."""
+        if self.dense is not None:
+            return self.dense @ nodes
+        l, m, n = self.shape
+        x = nodes.reshape(l * m, n, 3)
+        out = np.zeros((self.n_points, 3))
+        for k in range(n):
+            out += self.bw[:, k, None] * (self.buv @ x[:, k, :])
+        return out
+
+    def apply_transpose(self, point_values: np.ndarray) -> np.ndarray:
+        """Chain rule (paper Eq 11): per-point ``(p, 3)`` -> per-node ``(l*m*n, 3)``."""
+        if self.dense is not None:
+            return self.dense.T @ point_values
+        l, m, n = self.shape
+        out = np.empty((l * m, n, 3))
+        for k in range(n):
+            out[:, k, :] = self.buv.T @ (self.bw[:, k, None] * point_values)
+        return out.reshape(l * m * n, 3)
+
+
+@dataclass(frozen=True, eq=False)
+class Lattice:
+    """An FFD lattice: node counts per axis and the affine frame.
+
+    Attributes
+    ----------
+    shape : (l, m, n) nodes per axis, each 2..10
+    origin : (3,) float64, the corner at (u, v, w) = (0, 0, 0)
+    axes : (3, 3) float64, rows are the edge vectors along u, v and w
+    """
+
+    shape: tuple[int, int, int]
+    origin: np.ndarray
+    axes: np.ndarray
+
+    def __post_init__(self) -> None:
+        shape = tuple(int(s) for s in self.shape)
+        if len(shape) != 3 or not all(MIN_NODES <= s <= MAX_NODES for s in shape):
+            raise IsochorError(
+                f"A lattice needs {MIN_NODES} to {MAX_NODES} nodes per axis, got {self.shape}."
+            )
+        origin = np.array(self.origin, dtype=np.float64).reshape(3)
+        axes = np.array(self.axes, dtype=np.float64).reshape(3, 3)
+        if not (np.all(np.isfinite(origin)) and np.all(np.isfinite(axes))):
+            raise IsochorError("The lattice frame has a non-finite number in it.")
+        det = np.linalg.det(axes)
+        scale = np.prod(np.linalg.norm(axes, axis=1))
+        if scale == 0 or abs(det) < 1e-9 * scale:
+            raise IsochorError("The lattice frame is singular: its three edge vectors are flat.")
+        origin.flags.writeable = False
+        axes.flags.writeable = False
+        object.__setattr__(self, "shape", shape)
+        object.__setattr__(self, "origin", origin)
+        object.__setattr__(self, "axes", axes)
+
+    @classmethod
+    def around(
+        cls, points: np.ndarray, shape: tuple[int, int, int] = (3, 3, 3), padding: float = 0.05
+    ) -> Lattice:
+        """An axis-aligned lattice around the bounding box of ``points``.
+
+        Each axis is padded on both sides by ``padding`` times its extent (at least
+        ``padding`` times 1% of the largest extent, so a flat model still gets a box), which
+        puts every point strictly inside.
+        """
+        points = np.asarray(points, dtype=np.float64)
+        if padding <= 0:
+            raise IsochorError(f"The lattice padding must be positive, got {padding}.")
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        ext = hi - lo
+        if not np.all(np.isfinite(ext)) or ext.max() <= 0:
+            raise IsochorError("The model has no extent: all its vertices are at one point.")
+        pad = padding * np.maximum(ext, 0.01 * ext.max())
+        return cls(shape, lo - pad, np.diag(ext + 2 * pad))
+
+    @property
+    def n_nodes(self) -> int:
+        l, m, n = self.shape
+        return l * m * n
+
+    @property
+    def size(self) -> float:
+        """Largest edge length of the lattice box."""
+        return float(np.linalg.norm(self.axes, axis=1).max())
+
+    def index(self, i: int, j: int, k: int) -> int:
+        """Row of node (i, j, k) in the node array (Eq 4 order)."""
+        l, m, n = self.shape
+        if not (0 <= i < l and 0 <= j < m and 0 <= k < n):
+            raise IndexError(f"node ({i}, {j}, {k}) is outside a {l}x{m}x{n} lattice")
+        return (i * m + j) * n + k
+
+    def ijk(self, index: int) -> tuple[int, int, int]:
+        """(i, j, k) of node row ``index``."""
+        l, m, n = self.shape
+        return tuple(int(a) for a in np.unravel_index(index, (l, m, n)))
+
+    def grid_parameters(self) -> np.ndarray:
+        """(nodes, 3) lattice coordinates (i/(l-1), j/(m-1), k/(n-1)) of every node."""
+        l, m, n = self.shape
+        g = np.meshgrid(
+            np.linspace(0, 1, l), np.linspace(0, 1, m), np.linspace(0, 1, n), indexing="ij"
+        )
+        return np.stack([a.ravel() for a in g], axis=1)
+
+    @property
+    def rest_nodes(self) -> np.ndarray:
+        """(nodes, 3) rest positions: the regular grid spanning the frame."""
+        return self.origin + self.grid_parameters() @ self.axes
+
+    def to_parameters(self, points: np.ndarray) -> np.ndarray:
+        """(p, 3) lattice coordinates (u, v, w) of world points (Eq 5)."""
+        return (np.asarray(points, dtype=np.float64) - self.origin) @ np.linalg.inv(self.axes)
+
+    def contains(self, points: np.ndarray, tol: float = 0.0) -> np.ndarray:
+        """(p,) bool: which points lie inside the lattice box (within ``tol`` in u, v, w)."""
+        uvw = self.to_parameters(points)
+        return np.all((uvw >= -tol) & (uvw <= 1 + tol), axis=1)
+
+    def basis(self, points: np.ndarray) -> PointBasis:
+        """The basis of a fixed point set; compute once, apply to many node positions."""
+        uvw = self.to_parameters(points)
+        l, m, n = self.shape
+        return PointBasis(
+            bernstein(l - 1, uvw[:, 0]), bernstein(m - 1, uvw[:, 1]), bernstein(n - 1, uvw[:, 2])
+        )
+
+    def deform(self, points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+        """(p, 3) points mapped by the FFD with node positions ``nodes`` (nodes, 3)."""
+        return self.basis(points).apply(np.asarray(nodes, dtype=np.float64))

@@ -1,0 +1,77 @@
+"""The spring network between lattice nodes (paper Eq 14).
+
+``E = sum_j k/2 (|X_e - X_s| - L_j)^2`` (the square is lost in the paper's typesetting).
+Every node is linked to up to 14 neighbours: its 6 axis neighbours and its 8 body-diagonal
+neighbours. That set is mirror-symmetric, so a symmetric squash stays symmetric; the other
+reading of "14 neighbours" (the edges of a 6-tetrahedra split of each cell) is not, and
+twists the lattice under a symmetric squash. Rest lengths come from the rest lattice, so the
+energy is zero for the rest lattice and for any rigid motion of it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Undirected neighbour offsets: 3 axis directions and 4 body diagonals. Each node meets
+#: each offset forwards and backwards, hence 6 + 8 = 14 neighbours.
+OFFSETS = np.array(
+    [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1), (1, 1, -1), (1, -1, 1), (1, -1, -1)]
+)
+
+
+def lattice_springs(shape: tuple[int, int, int]) -> np.ndarray:
+    """(s, 2) node-row pairs of every spring of a lattice of ``shape`` nodes."""
+    l, m, n = shape
+    idx = np.arange(l * m * n).reshape(l, m, n)
+    pairs = []
+    for di, dj, dk in OFFSETS:
+        src = idx[
+            max(0, -di) : l - max(0, di), max(0, -dj) : m - max(0, dj), max(0, -dk) : n - max(0, dk)
+        ]
+        dst = idx[max(0, di) : l + min(0, di), max(0, dj) : m + min(0, dj), max(0, dk) : n + min(0, dk)]
+        pairs.append(np.stack([src.ravel(), dst.ravel()], axis=1))
+    return np.concatenate(pairs)
+
+
+class SpringNetwork:
+    """Spring energy and gradient over node positions.
+
+    Parameters
+    ----------
+    edges : (s, 2) int, node rows of each spring
+    rest_nodes : (nodes, 3) float64, positions that define the natural lengths
+    stiffness : the spring constant k, the same for every spring
+    """
+
+    def __init__(self, edges: np.ndarray, rest_nodes: np.ndarray, stiffness: float = 1.0) -> None:
+        self.edges = np.asarray(edges, dtype=np.int64)
+        self.stiffness = float(stiffness)
+        self.rest_lengths = self.lengths(rest_nodes)
+        self.n_nodes = len(rest_nodes)
+
+    @classmethod
+    def for_lattice(cls, shape: tuple[int, int, int], rest_nodes: np.ndarray) -> SpringNetwork:
+        return cls(lattice_springs(shape), rest_nodes)
+
+    def lengths(self, nodes: np.ndarray) -> np.ndarray:
+        """(s,) current spring lengths."""
+        d = nodes[self.edges[:, 1]] - nodes[self.edges[:, 0]]
+        return np.sqrt(np.einsum("ij,ij->i", d, d))
+
+    def energy(self, nodes: np.ndarray) -> float:
+        stretch = self.lengths(nodes) - self.rest_lengths
+        return 0.5 * self.stiffness * float(stretch @ stretch)
+
+    def energy_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
+        """Energy and its gradient ``(nodes, 3)``."""
+        d = nodes[self.edges[:, 1]] - nodes[self.edges[:, 0]]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        stretch = length - self.rest_lengths
+        energy = 0.5 * self.stiffness * float(stretch @ stretch)
+        # d|d|/d(end) = d/|d|; a zero-length spring pulls in no defined direction.
+        safe = np.where(length > 0, length, 1.0)
+        force = (self.stiffness * stretch / safe)[:, None] * d
+        grad = np.zeros((self.n_nodes, 3))
+        np.add.at(grad, self.edges[:, 1], force)
+        np.add.at(grad, self.edges[:, 0], -force)
+        return energy, grad

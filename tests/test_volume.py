@@ -1,0 +1,74 @@
+"""Volume and its gradient: closed forms, finite differences, the O(1/N) claim."""
+
+import numpy as np
+import pytest
+
+from core.lattice import Lattice
+from core.multilevel import EmbeddedSurface
+from core.shapes import sphere_levels, sphere_volume, torus_levels, torus_volume
+from core.volume import VolumeOperator, signed_volume
+
+CUBE_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                   [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], dtype=float)
+CUBE_F = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                   [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+
+
+def test_cube_volume_is_exact_anywhere_and_sign_follows_winding():
+    for shift in (0.0, 1e6):
+        v = CUBE_V * (2.0, 3.0, 4.0) + shift
+        assert signed_volume(v, CUBE_F) == pytest.approx(24.0, rel=1e-12)
+        assert signed_volume(v, CUBE_F[:, ::-1]) == pytest.approx(-24.0, rel=1e-12)
+
+
+def test_volume_gradient_matches_central_differences():
+    rng = np.random.default_rng(4)
+    mesh = sphere_levels(3)[-1]
+    verts = mesh.vertices + rng.normal(scale=0.05, size=mesh.vertices.shape)
+    op = VolumeOperator(mesh.faces, len(verts))
+    v, grad = op.value_and_gradient(verts)
+    assert v == pytest.approx(signed_volume(verts, mesh.faces), rel=1e-12)
+    h = 1e-6
+    for idx in rng.choice(len(verts), 8, replace=False):
+        for c in range(3):
+            vp, vm = verts.copy(), verts.copy()
+            vp[idx, c] += h
+            vm[idx, c] -= h
+            fd = (op(vp) - op(vm)) / (2 * h)
+            assert abs(fd - grad[idx, c]) <= 1e-6 * max(1.0, abs(grad[idx, c]))
+
+
+def test_volume_gradient_wrt_nodes_matches_central_differences():
+    rng = np.random.default_rng(5)
+    levels = torus_levels(4)
+    lat = Lattice.around(levels[-1].vertices, (4, 3, 3))
+    surface = EmbeddedSurface(lat, levels)
+    nodes = lat.rest_nodes + rng.normal(scale=0.05, size=(lat.n_nodes, 3))
+    _, grad = surface.level(-1).volume_and_gradient(nodes)
+    h = 1e-6
+    num = np.zeros_like(grad)
+    for r in range(lat.n_nodes):
+        for c in range(3):
+            p, m = nodes.copy(), nodes.copy()
+            p[r, c] += h
+            m[r, c] -= h
+            num[r, c] = (surface.volume(p) - surface.volume(m)) / (2 * h)
+    assert np.max(np.abs(num - grad)) <= 1e-6 * np.max(np.abs(grad))
+
+
+@pytest.mark.parametrize(
+    "levels, exact",
+    [(torus_levels(6), torus_volume()), (sphere_levels(6), sphere_volume())],
+    ids=["torus", "sphere"],
+)
+def test_sampled_volume_converges_as_one_over_n(levels, exact):
+    """Paper Sec 4.2: the triangle approximation's error is O(1/N_tri)."""
+    fine = levels[-3:]  # three levels, each 4 times finer
+    errors = [exact - signed_volume(m.vertices, m.faces) for m in fine]
+    assert all(e > 0 for e in errors)  # inscribed polyhedra lose volume
+    ratios = [errors[i] / errors[i + 1] for i in range(2)]
+    for r, m0, m1 in zip(ratios, fine, fine[1:]):
+        assert r == pytest.approx(m1.n_faces / m0.n_faces, rel=0.05)
+    # error * N is about constant: that constant is C of Eq 28
+    c = [e * m.n_faces for e, m in zip(errors, fine)]
+    assert max(c) / min(c) < 1.1
