@@ -34,7 +34,7 @@ from core.lattice import Lattice, PointBasis
 from core.mesh import TriMesh
 from core.solver import LevelProblem, SolverOptions, augmented_lagrangian
 from core.springs import SpringNetwork
-from core.volume import VolumeOperator
+from core.volume import VolumeOperator, signed_volume
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -157,10 +157,11 @@ class EmbeddedSurface:
             self._cache[k] = _Level(self.lattice, self.levels[k], self.center)
         return self._cache[k]
 
-    @property
+    @cached_property
     def rest_volume(self) -> float:
-        """Volume of the full-resolution mesh with the rest lattice."""
-        return self.level(-1).rest_volume
+        """Volume of the full-resolution mesh as given (the FFD of the rest lattice is the
+        identity), computed without building the full level's basis."""
+        return signed_volume(self.full.vertices, self.full.faces)
 
     def volume(self, nodes: np.ndarray, level: int = -1) -> float:
         return self.level(level).volume(np.asarray(nodes, dtype=np.float64))
@@ -191,7 +192,8 @@ def solve(
 
     Yields
     ------
-    Progress, every inner step and at each level's end.
+    Progress: one at once with the start state (step 0), then every inner step and at
+    each level's end.
 
     Returns
     -------
@@ -231,12 +233,20 @@ def solve(
     if not free.any():
         return result(x, [], -1, 0.0, 0.0, True, "no free node: nothing to solve")
 
-    _, dv = surface.level(start_level).volume_and_gradient(x)
+    first = surface.level(start_level)
+    v, dv = first.volume_and_gradient(x)
     if np.max(np.abs(dv[free])) * size / v_ref < 1e-9:
         raise IsochorError(
             "The free nodes cannot change the model's volume: free nodes that influence "
             "the model, or pin fewer nodes."
         )
+    # The first record comes before any work on the fine levels, so a window can redraw
+    # the user's edit at once.
+    yield Progress(
+        _frozen(x), start_level, n_levels, first.triangles, 0,
+        (v - target_ratio * first.rest_volume) / v_ref, opts.sigma0, 0.0,
+        surface.springs.energy(x) / size**2, time.perf_counter() - t0,
+    )
 
     lam, sigma = 0.0, opts.sigma0
     warm = _warm_start(surface, x, free, target_ratio, v_ref, opts)

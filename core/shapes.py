@@ -49,7 +49,7 @@ def torus(nu: int, nv: int, major: float = 1.0, minor: float = 0.4) -> TriMesh:
     return _outward(TriMesh(verts, np.array(faces)))
 
 
-def torus_levels(n_levels: int = 8, major: float = 1.0, minor: float = 0.4) -> list[TriMesh]:
+def torus_levels(n_levels: int = 7, major: float = 1.0, minor: float = 0.4) -> list[TriMesh]:
     """16, 64, 256, ... triangles (``n_levels`` of them)."""
     return [torus(4 * 2**k, 2 * 2**k, major, minor) for k in range(n_levels)]
 

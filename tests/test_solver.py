@@ -95,7 +95,8 @@ def test_torus_compression_levels_look_like_table_2(compression):
     # progress: every inner step and every level end was reported, in order
     ends = [p for p in records if p.level_done]
     assert [p.level for p in ends] == [r.level for r in rows]
-    assert len(records) == sum(r.steps for r in rows) + len(rows)
+    assert records[0].step == 0 and np.array_equal(records[0].nodes, problem.nodes)
+    assert len(records) == 1 + sum(r.steps for r in rows) + len(rows)
     assert all(a.elapsed <= b.elapsed for a, b in zip(records, records[1:]))
     with pytest.raises(ValueError):
         records[0].nodes[0, 0] = 1.0  # immutable snapshot
@@ -155,7 +156,7 @@ def test_target_volume_ratio_is_met(ratio):
 def test_closing_the_generator_stops_it_and_a_rerun_converges_at_once(compression):
     problem, _, result = compression
     gen = solve(problem.surface, problem.nodes, problem.fixed)
-    first = [next(gen) for _ in range(5)]
+    first = [next(gen) for _ in range(6)]
     assert first[-1].level == 0 and not first[-1].level_done  # mid-level
     gen.close()
     assert inspect.getgeneratorstate(gen) == inspect.GEN_CLOSED
@@ -187,6 +188,7 @@ def test_no_free_node_returns_at_once_and_useless_free_nodes_are_an_error():
     nodes = lat.rest_nodes.copy()
     records, result = run(solve(surface, nodes, np.ones(lat.n_nodes, bool)))
     assert records == [] and result.converged and result.levels == ()
+    assert result.volume_final == pytest.approx(result.volume_original, rel=1e-12)
     # only the centre node free: by symmetry it cannot change the sphere's volume
     fixed = np.ones(lat.n_nodes, bool)
     fixed[lat.index(1, 1, 1)] = False
