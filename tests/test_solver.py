@@ -138,7 +138,8 @@ def test_torus_stretch_centre_layer_contracts_sideways():
     # the paper's Plate 6 remark on multiple equilibria.)
     def section(x):
         q = x[mid][:, 1:]  # rows (j, k) = (0,0), (0,1), (1,0), (1,1)
-        return abs(np.cross(q[3] - q[0], q[2] - q[1])) / 2
+        a, b = q[3] - q[0], q[2] - q[1]
+        return abs(a[0] * b[1] - a[1] * b[0]) / 2
 
     assert section(result.nodes) < 0.5 * section(lat.rest_nodes)
     _constrained_energy_check(problem, result, np.random.default_rng(10))
