@@ -277,6 +277,11 @@ def solve(
             except StopIteration as stop:
                 al = stop.value
                 break
+            except FloatingPointError:
+                raise IsochorError(
+                    f"The solve broke down on level {k}: the lattice is folded so far that the "
+                    "volume has no usable gradient. Undo the last move or pin fewer nodes."
+                ) from None
             yield Progress(
                 _frozen(problem.to_nodes(it.y)), k, n_levels, level.triangles, it.step,
                 it.deviation, it.sigma, it.lam, it.energy, time.perf_counter() - t0,

@@ -200,3 +200,19 @@ def test_no_free_node_returns_at_once_and_useless_free_nodes_are_an_error():
 def test_default_options_are_the_paper_tolerances():
     o = SolverOptions()
     assert o.tol_nodes == 1e-3 and o.tol_volume == 5e-4
+
+
+def test_a_breakdown_is_reported_as_a_user_error(monkeypatch):
+    problem = build(example_scenario("club-compression"))
+    level = problem.surface.level(0)
+    real = level.volume_and_gradient
+    calls = {"n": 0}
+
+    def poisoned(nodes):
+        calls["n"] += 1
+        v, g = real(nodes)
+        return (v, g * np.nan) if calls["n"] > 3 else (v, g)
+
+    monkeypatch.setattr(level, "volume_and_gradient", poisoned)
+    with pytest.raises(IsochorError, match="broke down on level 0"):
+        run(solve(problem.surface, problem.nodes, problem.fixed))
