@@ -7,6 +7,7 @@ from core.lattice import Lattice
 from core.multilevel import EmbeddedSurface
 from core.shapes import sphere_levels, sphere_volume, torus_levels, torus_volume
 from core.volume import VolumeOperator, signed_volume
+from tests.numdiff import central_gradient
 
 CUBE_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
                    [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], dtype=float)
@@ -45,14 +46,7 @@ def test_volume_gradient_wrt_nodes_matches_central_differences():
     surface = EmbeddedSurface(lat, levels)
     nodes = lat.rest_nodes + rng.normal(scale=0.05, size=(lat.n_nodes, 3))
     _, grad = surface.level(-1).volume_and_gradient(nodes)
-    h = 1e-6
-    num = np.zeros_like(grad)
-    for r in range(lat.n_nodes):
-        for c in range(3):
-            p, m = nodes.copy(), nodes.copy()
-            p[r, c] += h
-            m[r, c] -= h
-            num[r, c] = (surface.volume(p) - surface.volume(m)) / (2 * h)
+    num = central_gradient(surface.volume, nodes)
     assert np.max(np.abs(num - grad)) <= 1e-6 * np.max(np.abs(grad))
 
 
