@@ -109,6 +109,8 @@ class Scenario:
             if ("by" in mv) == ("to" in mv):
                 raise IsochorError(f"{where}: give exactly one of 'by' or 'to'")
             node = _node(mv["node"], f"{where}.node", shape)
+            if any(m.node == node for m in moves):
+                raise IsochorError(f"{where}.node: node {list(node)} is already moved")
             if "by" in mv:
                 moves.append(Move(node, by=_vec(mv["by"], f"{where}.by")))
             else:
@@ -167,6 +169,8 @@ class Scenario:
             doc = json.loads(text)
         except json.JSONDecodeError as exc:
             raise IsochorError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+        except RecursionError:
+            raise IsochorError(f"{path}: not a scenario (nested too deeply)") from None
         try:
             return cls.from_dict(doc, path.parent)
         except IsochorError as exc:
@@ -197,19 +201,37 @@ class Scenario:
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and a rename,
-    so that a failure never leaves a half-written file."""
+    """Write ``text`` (UTF-8) to ``path`` atomically; see :func:`atomic_write_bytes`."""
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename,
+    so that a failure (or Ctrl-C) never leaves a half-written file.
+
+    The new file gets the permissions of the file it replaces, or the usual ones for a new
+    file (0666 less the umask), not the private mode of the temporary file."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, _file_mode(path))
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _file_mode(path: Path) -> int:
+    try:
+        return path.stat().st_mode & 0o7777
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
 
 
 @dataclass

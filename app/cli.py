@@ -1,0 +1,268 @@
+"""The ``isochor`` command: the editor, a headless solve, the examples, the benchmark.
+
+::
+
+    isochor                                   open the editor
+    isochor edit FILE [--screenshot out.png]  open a scenario or a model in the editor
+    isochor solve SCENARIO.json [--out deformed.ply] [--report report.json]
+    isochor solve --example NAME [--out ...] [--report ...]
+    isochor examples                          list the built-in examples
+    isochor bench [--quick] [...]             the paper's benchmark
+
+Exit status: 0 success; 1 a user error (bad file, open mesh, unwritable output: one line
+``isochor: <message>`` on standard error); 2 a usage error; 3 the solve ran but did not
+reach the volume tolerance (the outputs are written, ``converged`` is false in the report);
+130 interrupted (Ctrl-C), with nothing written.
+
+Only ``edit`` (and no command) imports the GUI; everything else runs without Qt.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TextIO
+
+from core.errors import IsochorError
+
+if TYPE_CHECKING:
+    from core.multilevel import SolveResult
+    from core.scenario import Problem
+
+EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status (the console script exits with it)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "bench":  # the benchmark parses its own options
+        return _bench(argv[1:])
+    args = _parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except IsochorError as exc:
+        return _fail(exc)
+    except OSError as exc:  # output files: a missing folder, no permission, a full disk
+        where = f"{exc.filename}: " if exc.filename else ""
+        return _fail(f"{where}{exc.strerror or exc}")
+    except KeyboardInterrupt:
+        print("isochor: interrupted; nothing was written", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _fail(message: Any) -> int:
+    text = " ".join(str(message).split())  # always one line
+    print(f"isochor: {text}", file=sys.stderr)
+    return EXIT_ERROR
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="isochor",
+        description="Volume-preserving free-form deformation (Hirota, Maheshwari, Lin 1999). "
+        "Without a command, opens the editor.",
+    )
+    parser.set_defaults(run=_edit, file=None, screenshot=None)
+    sub = parser.add_subparsers(title="commands", metavar="COMMAND")
+
+    edit = sub.add_parser("edit", help="open a scenario (.json) or a model in the editor")
+    edit.add_argument("file", type=Path, help="scenario .json, or an OBJ/PLY/STL/OFF model")
+    edit.add_argument("--screenshot", type=Path, metavar="PNG",
+                      help="render the window to this image and exit")
+    edit.set_defaults(run=_edit)
+
+    solve = sub.add_parser("solve", help="solve a scenario without a window",
+                           description="Load, solve with the multi-level optimizer, print one "
+                           "row per level, write the deformed full-resolution mesh and a "
+                           "JSON report. Exit status 3: finished without reaching the "
+                           "volume tolerance (outputs written).")
+    what = solve.add_mutually_exclusive_group(required=True)
+    what.add_argument("scenario", nargs="?", type=Path, help="the scenario .json")
+    what.add_argument("--example", metavar="NAME", help="a built-in example (isochor examples)")
+    solve.add_argument("--out", type=Path, metavar="MESH",
+                       help="deformed mesh: .obj, .ply or .stl")
+    solve.add_argument("--report", type=Path, metavar="JSON", help="the report (JSON)")
+    solve.add_argument("--quiet", "-q", action="store_true", help="no per-level table")
+    solve.set_defaults(run=_solve)
+
+    examples = sub.add_parser("examples", help="list the built-in examples")
+    examples.set_defaults(run=_examples)
+
+    sub.add_parser("bench", help="the paper's benchmark (isochor bench --help)")
+    return parser
+
+
+# -- edit ---------------------------------------------------------------------------------
+def _edit(args: argparse.Namespace) -> int:
+    try:
+        from app.window import run_editor  # noqa: PLC0415 (Qt only for the editor)
+    except ImportError as exc:
+        return _fail(f"the editor cannot start: {exc}")
+    file = str(args.file) if args.file is not None else None
+    shot = str(args.screenshot) if args.screenshot is not None else None
+    return int(run_editor(file, shot) or 0)
+
+
+# -- bench --------------------------------------------------------------------------------
+def _bench(argv: list[str]) -> int:
+    try:
+        from core import bench  # noqa: PLC0415
+    except ModuleNotFoundError as exc:
+        if exc.name != "core.bench":
+            raise
+        print("isochor: the benchmark (core.bench) is not part of this installation",
+              file=sys.stderr)
+        return EXIT_USAGE
+    return int(bench.main(argv) or 0)
+
+
+# -- examples -----------------------------------------------------------------------------
+def _examples(args: argparse.Namespace) -> int:
+    from core.examples import EXAMPLES  # noqa: PLC0415
+
+    width = max(len(n) for n in EXAMPLES)
+    for name, text in EXAMPLES.items():
+        print(f"{name:<{width}}  {text}")
+    return EXIT_OK
+
+
+# -- solve --------------------------------------------------------------------------------
+def _solve(args: argparse.Namespace) -> int:
+    from core.mesh import TriMesh  # noqa: PLC0415
+    from core.meshio import WRITE_FORMATS, count_bodies, mesh_bytes  # noqa: PLC0415
+    from core.scenario import Scenario, atomic_write_bytes, build  # noqa: PLC0415
+
+    _check_output(args.out, WRITE_FORMATS)
+    _check_output(args.report, None)
+    if args.example is not None:
+        from core.examples import example_scenario  # noqa: PLC0415
+
+        scenario, source = example_scenario(args.example), f"example {args.example}"
+    else:
+        scenario, source = Scenario.read(args.scenario), str(args.scenario)
+    t0 = time.perf_counter()
+    problem = build(scenario)
+    for w in problem.warnings:
+        print(f"isochor: warning: {w}", file=sys.stderr)
+    out = None if args.quiet else sys.stdout
+    result = run_solve(problem, out)
+    total = time.perf_counter() - t0
+    surface = problem.surface
+    deformed = TriMesh(surface.deform(result.nodes), surface.full.faces)
+    report = make_report(problem, result, source, total, count_bodies(surface.full))
+    # everything is computed before anything is written: an error or Ctrl-C up to here
+    # leaves no file, and each file is replaced atomically
+    files = []
+    if args.out is not None:
+        files.append((args.out, mesh_bytes(deformed, args.out.suffix.lower())))
+    if args.report is not None:
+        files.append((args.report, (json.dumps(report, indent=2) + "\n").encode("utf-8")))
+    for path, data in files:
+        atomic_write_bytes(path, data)
+    _summary(result, args)
+    if not result.converged:
+        print(f"isochor: the solve did not converge: {result.message}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    return EXIT_OK
+
+
+def _check_output(path: Path | None, kinds: Sequence[str] | None) -> None:
+    """Fail before the solve, not after it, on an output that cannot be written."""
+    if path is None:
+        return
+    if path.is_dir():
+        raise IsochorError(f"{path}: is a folder, not a file name")
+    if kinds is not None and path.suffix.lower() not in kinds:
+        raise IsochorError(f"{path}: the file name must end in {', '.join(kinds)}")
+    if not path.parent.is_dir():
+        raise IsochorError(f"{path}: the folder {path.parent} does not exist")
+
+
+def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:
+    """Drive :func:`core.multilevel.solve` to its end, printing one row per level.
+
+    Ctrl-C closes the generator (the solve stops at once) and is raised again.
+
+    Returns
+    -------
+    core.multilevel.SolveResult
+    """
+    from core.multilevel import solve  # noqa: PLC0415
+
+    sc = problem.scenario
+    run = solve(problem.surface, problem.nodes, problem.fixed,
+                target_ratio=sc.target_volume_ratio, options=problem.options)
+    if out is not None:
+        print(f"{'level':>5} {'triangles':>10} {'max dX %':>9} {'steps':>6} {'ms':>8} "
+              f"{'|dV|/V0':>9}", file=out, flush=True)
+    last = 0.0
+    try:
+        while True:
+            try:
+                p = next(run)
+            except StopIteration as stop:
+                return stop.value
+            if p.level_done and out is not None:
+                change = 100 * p.max_node_change if p.max_node_change is not None else 0.0
+                print(f"{p.level:>5} {p.triangles:>10} {change:>9.3f} {p.step:>6} "
+                      f"{1000 * (p.elapsed - last):>8.1f} {abs(p.rel_volume_error):>9.2e}",
+                      file=out, flush=True)
+            if p.level_done:
+                last = p.elapsed
+    except BaseException:
+        run.close()
+        raise
+
+
+def make_report(problem: Problem, result: SolveResult, source: str, time_s: float,
+                bodies: int) -> dict[str, Any]:
+    """The JSON report of a solve (volumes on the full-resolution mesh)."""
+    sc = problem.scenario
+    return {
+        "scenario": source,
+        "model": dict(sc.model),
+        "model_path": str(sc.model_path()) if "path" in sc.model else None,
+        "lattice": list(problem.surface.lattice.shape),
+        "triangles": problem.surface.full.n_faces,
+        "bodies": bodies,
+        "volume_original": result.volume_original,
+        "volume_target": result.volume_target,
+        "volume_final": result.volume_final,
+        "relative_volume_error": result.rel_volume_error,
+        "target_volume_ratio": sc.target_volume_ratio,
+        "converged": bool(result.converged),
+        "message": result.message,
+        "terminal_level": result.terminal_level,
+        "levels": [
+            {"level": s.level, "triangles": s.triangles, "steps": s.steps, "time_s": s.time_s,
+             "max_node_change": s.max_node_change,
+             "relative_volume_error": s.rel_volume_error}
+            for s in result.levels
+        ],
+        "pyramid": [m.n_faces for m in problem.surface.levels],
+        "nodes": [[float(x) for x in row] for row in result.nodes],
+        "free_nodes": result.free_nodes,
+        "energy": result.energy,
+        "solve_time_s": result.elapsed,
+        "time_s": time_s,
+        "warnings": list(problem.warnings),
+    }
+
+
+def _summary(result: SolveResult, args: argparse.Namespace) -> None:
+    if args.quiet:
+        return
+    print(f"volume {result.volume_original:.6g} -> {result.volume_final:.6g} "
+          f"(target {result.volume_target:.6g}, error {result.rel_volume_error:+.2e}); "
+          f"{result.free_nodes} free nodes; {result.elapsed:.2f} s")
+    for path in (args.out, args.report):
+        if path is not None:
+            print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,305 @@
+"""Reading, cleaning, checking and writing mesh files (core.meshio)."""
+
+from __future__ import annotations
+
+import os
+import stat
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial import ConvexHull
+
+from core.errors import IsochorError
+from core.mesh import TriMesh
+from core.meshio import (
+    EdgeReport,
+    clean_closed_surface,
+    count_bodies,
+    load_levels,
+    load_mesh,
+    mesh_bytes,
+    save_mesh,
+)
+from core.volume import signed_volume
+from tests.models import CLOSED, OPEN, icosphere, joined, model, trimesh_volume
+
+
+def write_obj(path, mesh: TriMesh) -> None:
+    """A plain OBJ written without core.meshio (so the reader is tested on its own)."""
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in mesh.vertices.tolist()]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh.faces.tolist()]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def volume(mesh: TriMesh) -> float:
+    return signed_volume(mesh.vertices, mesh.faces)
+
+
+# -- the shared models --------------------------------------------------------------------
+@pytest.mark.parametrize("name", sorted(CLOSED))
+def test_closed_models_load_unchanged_with_trimesh_volume(name):
+    path = model(name)
+    loaded = load_mesh(path)
+    triangles, bodies = CLOSED[name]
+    assert loaded.mesh.n_faces == triangles
+    assert loaded.bodies == bodies
+    assert loaded.warnings == []
+    assert loaded.path == path
+    assert loaded.volume > 0
+    assert loaded.volume == pytest.approx(trimesh_volume(path), rel=1e-9)
+    check = trimesh.Trimesh(loaded.mesh.vertices, loaded.mesh.faces, process=False)
+    assert check.is_watertight and check.is_winding_consistent
+
+
+def test_cow_keeps_its_pinched_vertex_and_vertex_order():
+    path = model("cow.obj")
+    loaded = load_mesh(path)
+    raw = trimesh.load_mesh(str(path), process=False)
+    # nothing to weld: same vertices in the same order, same triangles
+    assert np.array_equal(loaded.mesh.vertices, raw.vertices)
+    assert np.array_equal(loaded.mesh.faces, raw.faces)
+    report = EdgeReport.of(loaded.mesh.faces, loaded.mesh.n_vertices)
+    euler = loaded.mesh.n_vertices - len(report.counts) + loaded.mesh.n_faces
+    assert euler == 1  # the pinched vertex (SOURCES.md): not a 2-manifold, still closed
+    assert np.allclose(loaded.mesh.vertices[253], [-3.508, 1.700, 0.0], atol=1e-3)
+
+
+def test_quads_rgb_and_missing_mtl_are_triangulated_and_welded():
+    loaded = load_mesh(model("torus_knot_quads.obj"))
+    assert loaded.mesh.n_faces == 2880 and loaded.mesh.n_vertices == 1440
+
+
+def test_viewpoint_cow_polygons_are_triangulated():
+    loaded = load_mesh(model("cow_viewpoint_polygons.obj"))
+    assert loaded.mesh.n_faces == 5804 and loaded.mesh.n_vertices == 2903
+    assert loaded.volume == pytest.approx(53.4868, rel=1e-5)
+
+
+def test_inconsistent_winding_is_repaired_to_the_cows_volume():
+    cow = load_mesh(model("cow.obj"))
+    patched = load_mesh(model("cow_flipped_patch.obj"))
+    assert any("Inconsistent winding" in w and "300" in w for w in patched.warnings)
+    assert patched.volume == pytest.approx(cow.volume, rel=1e-12)
+    assert np.array_equal(np.sort(patched.mesh.faces, axis=1), np.sort(cow.mesh.faces, axis=1))
+    assert np.array_equal(patched.mesh.faces, cow.mesh.faces)  # same winding, face by face
+
+
+def test_multibody_stl_with_inconsistent_winding_keeps_both_bodies():
+    path = model("multibody_inconsistent_winding.stl")
+    loaded = load_mesh(path)
+    assert loaded.bodies == 2
+    assert any("winding" in w for w in loaded.warnings)
+    # independent check: both bodies are (nearly) convex; sum of their hull volumes
+    raw = trimesh.load_mesh(str(path), process=False)
+    raw.merge_vertices()
+    hulls = sum(ConvexHull(np.asarray(b.vertices)).volume for b in raw.split(only_watertight=False))
+    assert loaded.volume == pytest.approx(hulls, rel=3e-4)
+
+
+@pytest.mark.parametrize("name", sorted(OPEN))
+def test_open_surfaces_are_refused_with_edge_counts(name):
+    boundary, non_manifold = OPEN[name]
+    with pytest.raises(IsochorError) as err:
+        load_mesh(model(name))
+    msg = str(err.value)
+    assert msg.startswith(f"{name}: the surface is not closed")
+    assert f"{boundary} boundary edge" in msg
+    if non_manifold:
+        assert f"{non_manifold} non-manifold edge" in msg
+    assert "\n" not in msg
+
+
+# -- synthetic inputs ---------------------------------------------------------------------
+def test_inward_facing_mesh_is_flipped_with_a_warning(tmp_path):
+    sphere = icosphere(3)
+    write_obj(tmp_path / "inward.obj", TriMesh(sphere.vertices, sphere.faces[:, ::-1]))
+    loaded = load_mesh(tmp_path / "inward.obj")
+    assert any("inward" in w for w in loaded.warnings)
+    assert loaded.volume == pytest.approx(volume(sphere), rel=1e-12)
+    assert np.array_equal(loaded.mesh.faces, sphere.faces)
+
+
+def test_bodies_are_oriented_one_by_one_and_volumes_add(tmp_path):
+    a = icosphere(3, 1.0)
+    b = icosphere(2, 0.5, center=(5, 0, 0))
+    c = icosphere(2, 0.3, center=(0, 5, 0))
+    faces = b.faces.copy()
+    faces[:10] = faces[:10, ::-1]  # a patch wound the wrong way
+    mixed = joined(TriMesh(a.vertices, a.faces[:, ::-1]), TriMesh(b.vertices, faces), c)
+    write_obj(tmp_path / "three.obj", mixed)
+    loaded = load_mesh(tmp_path / "three.obj")
+    assert loaded.bodies == 3
+    assert loaded.volume == pytest.approx(volume(a) + volume(b) + volume(c), rel=1e-12)
+    assert any("winding" in w for w in loaded.warnings)
+    assert any("1 of 3 bodies" in w for w in loaded.warnings)
+
+
+def test_a_cavity_is_subtracted_not_added(tmp_path):
+    outer, inner = icosphere(3, 1.0), icosphere(3, 0.5, center=(0.1, 0, 0))
+    # both wound outward, as a careless exporter writes a hollow ball
+    write_obj(tmp_path / "hollow.obj", joined(outer, inner))
+    loaded = load_mesh(tmp_path / "hollow.obj")
+    assert loaded.bodies == 2
+    assert loaded.volume == pytest.approx(volume(outer) - volume(inner), rel=1e-12)
+    assert len(loaded.warnings) == 1
+
+
+def test_degenerate_and_duplicate_triangles_are_dropped(tmp_path):
+    s = icosphere(2)
+    f = s.faces
+    extra = np.array([f[0], f[1][::-1], f[1], f[2], f[2][::-1], [0, 0, 5]])
+    # f0 twice (same way): keep one. f1 reversed + f1 + f1: net one copy kept. f2 + reversed
+    # f2 + f2: net one. [0, 0, 5]: degenerate.
+    write_obj(tmp_path / "dups.obj", TriMesh(s.vertices, np.concatenate([f, extra])))
+    loaded = load_mesh(tmp_path / "dups.obj")
+    assert loaded.mesh.n_faces == s.n_faces
+    assert loaded.volume == pytest.approx(volume(s), rel=1e-12)
+    assert any("degenerate" in w for w in loaded.warnings)
+    assert any("5 duplicate" in w for w in loaded.warnings)
+
+
+def test_an_internal_double_wall_cancels(tmp_path):
+    s = icosphere(2)
+    wall = np.array([[0, 1, 2], [0, 2, 1]])  # the same triangle both ways
+    write_obj(tmp_path / "wall.obj", TriMesh(s.vertices, np.concatenate([s.faces, wall])))
+    loaded = load_mesh(tmp_path / "wall.obj")
+    assert loaded.mesh.n_faces == s.n_faces
+
+
+def test_weld_is_relative_to_the_model_size(tmp_path):
+    s = icosphere(2)
+    # an STL repeats every corner; at any scale it must weld back to the same sphere
+    for scale in (1e-6, 1.0, 1e6):
+        mesh = TriMesh(s.vertices * scale, s.faces)
+        save_mesh(tmp_path / "s.stl", mesh)
+        loaded = load_mesh(tmp_path / "s.stl")
+        assert loaded.mesh.n_vertices == s.n_vertices
+        assert loaded.volume == pytest.approx(volume(s) * scale**3, rel=1e-5)
+
+
+def test_non_orientable_surface_is_refused():
+    # a Klein bottle grid: closed, every edge on two triangles, no consistent winding
+    n, m = 8, 6
+    def vid(i, j):
+        if i == n:
+            i, j = 0, (m - j) % m
+        return i * m + (j % m)
+    faces = []
+    for i in range(n):
+        for j in range(m):
+            a, b, c, d = vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1)
+            faces += [(a, b, c), (a, c, d)]
+    verts = np.random.default_rng(1).normal(size=(n * m, 3))
+    with pytest.raises(IsochorError, match="cannot be oriented"):
+        clean_closed_surface(verts, np.array(faces))
+
+
+def test_flat_closed_surface_is_refused():
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])
+    faces = np.array([[0, 1, 2], [1, 3, 2], [0, 2, 1], [1, 2, 3]])  # both sides of a square
+    with pytest.raises(IsochorError):
+        clean_closed_surface(verts, faces)
+
+
+# -- files that are not meshes ------------------------------------------------------------
+def _bad_files(tmp_path):
+    sphere = icosphere(2)
+    good_ply = mesh_bytes(sphere, ".ply")
+    good_obj = mesh_bytes(sphere, ".obj")
+    rng = np.random.default_rng(0)
+    return {
+        "empty.obj": b"",
+        "blank.stl": b"  \n\n",
+        "garbage.obj": b"hello, this is not a mesh\n",
+        "garbage.off": b"nonsense\n",
+        "garbage.ply": b"not a ply at all\n",
+        "random.stl": rng.bytes(3000),
+        "random.ply": rng.bytes(3000),
+        "truncated.ply": good_ply[: len(good_ply) // 2],
+        "truncated.obj": good_obj[: len(good_obj) * 2 // 3],
+        "truncated.off": b"OFF\n4 4 0\n0 0 0\n1 0 0\n",
+        "badindex.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
+        "nan.obj": b"v 0 0 0\nv nan 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n",
+        "points.ply": b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"
+                      b"property float y\nproperty float z\nend_header\n0 0 0\n1 1 1\n",
+        "model.xyz": b"0 0 0\n",
+        "model.glb": b"glTF",
+        "noextension": b"v 0 0 0\n",
+    }
+
+
+def test_every_bad_file_gives_one_error_naming_it(tmp_path):
+    for name, data in _bad_files(tmp_path).items():
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(IsochorError) as err:
+            load_mesh(tmp_path / name)
+        msg = str(err.value)
+        assert name in msg, msg
+        assert "\n" not in msg and len(msg) < 300, msg
+
+
+def test_missing_file_and_folder(tmp_path):
+    with pytest.raises(IsochorError, match="no such file"):
+        load_mesh(tmp_path / "nothing.obj")
+    (tmp_path / "dir.obj").mkdir()
+    with pytest.raises(IsochorError, match="not a file"):
+        load_mesh(tmp_path / "dir.obj")
+
+
+# -- writing ------------------------------------------------------------------------------
+@pytest.mark.parametrize("suffix", [".obj", ".ply", ".stl", ".OBJ"])
+def test_save_then_load_gives_the_same_mesh(tmp_path, suffix):
+    mesh = icosphere(3, 1.7, center=(1e3, -2.5, 1 / 3))
+    path = tmp_path / f"out{suffix}"
+    save_mesh(path, mesh)
+    back = trimesh.load_mesh(str(path), process=False)
+    back.merge_vertices()
+    assert len(back.faces) == mesh.n_faces
+    assert back.is_watertight and back.is_winding_consistent
+    exact = suffix.lower() != ".stl"  # STL stores float32 by definition
+    assert back.volume == pytest.approx(volume(mesh), rel=1e-12 if exact else 1e-5)
+    ours = load_mesh(path).mesh
+    if exact:
+        assert np.array_equal(ours.vertices, mesh.vertices)
+        assert np.array_equal(ours.faces, mesh.faces)
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary file left
+
+
+def test_save_refuses_unknown_formats_and_missing_folders(tmp_path):
+    mesh = icosphere(1)
+    with pytest.raises(IsochorError, match="OBJ, PLY, STL"):
+        save_mesh(tmp_path / "out.off", mesh)
+    with pytest.raises(OSError):
+        save_mesh(tmp_path / "no" / "such" / "out.ply", mesh)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_save_is_atomic_and_keeps_normal_permissions(tmp_path, monkeypatch):
+    path = tmp_path / "out.ply"
+    save_mesh(path, icosphere(1))
+    mode = stat.S_IMODE(os.stat(path).st_mode)
+    assert mode & stat.S_IRGRP or os.name == "nt"  # not the 0600 of a temporary file
+    before = path.read_bytes()
+
+    import core.scenario
+
+    def boom(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(core.scenario.os, "replace", boom)
+    with pytest.raises(KeyboardInterrupt):
+        save_mesh(path, icosphere(2))
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["out.ply"]
+
+
+def test_load_levels_gives_a_pyramid_ending_with_the_full_mesh(tmp_path):
+    sphere = icosphere(4)
+    save_mesh(tmp_path / "s.ply", sphere)
+    levels, warns = load_levels(tmp_path / "s.ply")
+    assert warns == []
+    assert np.array_equal(levels[-1].vertices, sphere.vertices)
+    assert [m.n_faces for m in levels][-1] == sphere.n_faces
+    assert len(levels) >= 3 and levels[0].n_faces < 100
+    assert count_bodies(levels[0]) == 1
