@@ -125,6 +125,9 @@ def _outward(mesh: TriMesh) -> TriMesh:
     return mesh
 
 
+#: Most levels a built-in shape may have (the torus's 9th has about a million triangles).
+MAX_LEVELS = 9
+
 #: name -> (level builder, description)
 BUILTINS: dict[str, tuple[Callable[..., list[TriMesh]], str]] = {
     "torus": (torus_levels, "torus, major radius 1, minor radius 0.4, axis z"),
@@ -139,6 +142,12 @@ def builtin_levels(name: str, **params) -> list[TriMesh]:
         raise IsochorError(
             f"Unknown built-in shape {name!r}; the built-in shapes are {', '.join(BUILTINS)}."
         )
+    for key, value in params.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+            raise IsochorError(f"model.{key}: must be a positive number, got {value!r}")
+    n_levels = params.get("n_levels", 1)
+    if n_levels != int(n_levels) or not 1 <= n_levels <= MAX_LEVELS:
+        raise IsochorError(f"model.n_levels: must be a whole number from 1 to {MAX_LEVELS}")
     try:
         return BUILTINS[name][0](**params)
     except TypeError as exc:

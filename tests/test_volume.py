@@ -66,3 +66,16 @@ def test_sampled_volume_converges_as_one_over_n(levels, exact):
     # error * N is about constant: that constant is C of Eq 28
     c = [e * m.n_faces for e, m in zip(errors, fine)]
     assert max(c) / min(c) < 1.1
+
+
+def test_builtin_shape_parameters_are_checked():
+    from core.errors import IsochorError
+    from core.shapes import builtin_levels
+
+    assert [m.n_faces for m in builtin_levels("torus", n_levels=2)] == [16, 64]
+    for bad in ({"n_levels": 14}, {"n_levels": 0}, {"n_levels": 2.5}, {"minor": "x"},
+                {"major": -1.0}):
+        with pytest.raises(IsochorError, match="model."):
+            builtin_levels("torus", **bad)
+    with pytest.raises(IsochorError, match="Unknown built-in shape"):
+        builtin_levels("teapot")
