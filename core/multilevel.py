@@ -178,7 +178,7 @@ def solve(
     *,
     target_ratio: float = 1.0,
     options: SolverOptions | None = None,
-    start_level: int = 0,
+    start_level: int | None = None,
 ) -> Generator[Progress, None, SolveResult]:
     """Move the free nodes to the least spring energy at the target volume.
 
@@ -188,7 +188,8 @@ def solve(
     nodes : (n, 3) current node positions (moved nodes where the user put them)
     fixed : (n,) bool, True for pinned and moved nodes
     target_ratio : target volume over the rest volume (1 preserves it)
-    start_level : first pyramid level to solve on
+    start_level : first pyramid level to solve on; by default the coarsest level with at
+        least ``options.start_triangles`` triangles
 
     Yields
     ------
@@ -214,6 +215,9 @@ def solve(
         raise IsochorError("The model encloses no volume, so there is no volume to preserve.")
     size, center = surface.size, surface.center
     n_levels = len(surface.levels)
+    if start_level is None:
+        start_level = next((k for k, m in enumerate(surface.levels)
+                            if m.n_faces >= opts.start_triangles), n_levels - 1)
     start_level = start_level % n_levels
 
     def result(x, stats, terminal, lam, sigma, converged, message=""):

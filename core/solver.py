@@ -42,6 +42,13 @@ class SolverOptions:
     memory: int = 12  #: L-BFGS correction pairs
     volume_margin: float = 0.5  #: a level is solved at ``volume_margin * tol_volume``
     symmetry_break: float = 1e-4  #: size of the start nudge of free nodes, / object size
+    #: A fresh solve starts on the coarsest level with at least this many triangles. Below
+    #: a few hundred triangles a step costs as much as on a mid-sized level (fixed call
+    #: overhead) and the level's optimum is far from the real one (a 16-triangle torus has
+    #: 14% of the torus's volume), so those levels cost time without earning it: measured
+    #: on the paper's examples, starting at 16 or 20 triangles was 1.3-2x slower than
+    #: starting near 256 (docs/BENCHMARKS.md). 0 gives the paper's schedule.
+    start_triangles: int = 250
 
 
 @dataclass(frozen=True)

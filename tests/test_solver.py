@@ -29,7 +29,9 @@ def run(gen):
 @pytest.fixture(scope="module")
 def compression():
     problem = build(example_scenario("torus-compression"))
-    records, result = run(solve(problem.surface, problem.nodes, problem.fixed))
+    paper_schedule = SolverOptions(start_triangles=0)  # from 16 triangles, as in Table 2
+    records, result = run(solve(problem.surface, problem.nodes, problem.fixed,
+                                options=paper_schedule))
     return problem, records, result
 
 
@@ -158,7 +160,7 @@ def test_closing_the_generator_stops_it_and_a_rerun_converges_at_once(compressio
     problem, _, result = compression
     gen = solve(problem.surface, problem.nodes, problem.fixed)
     first = [next(gen) for _ in range(6)]
-    assert first[-1].level == 0 and not first[-1].level_done  # mid-level
+    assert first[-1].level == first[0].level and not first[-1].level_done  # mid-level
     gen.close()
     assert inspect.getgeneratorstate(gen) == inspect.GEN_CLOSED
     with pytest.raises(StopIteration):
@@ -202,6 +204,15 @@ def test_default_options_are_the_paper_tolerances():
     assert o.tol_nodes == 1e-3 and o.tol_volume == 5e-4
 
 
+def test_default_schedule_starts_at_a_few_hundred_triangles(compression):
+    problem, _, paper = compression
+    records, result = run(solve(problem.surface, problem.nodes, problem.fixed))
+    assert records[0].triangles == 256 and result.levels[0].triangles == 256
+    assert result.converged and abs(result.rel_volume_error) <= 5e-4
+    # the same equilibrium as the paper's schedule from 16 triangles
+    assert np.max(np.abs(result.nodes - paper.nodes)) < 2e-3 * problem.surface.size
+
+
 def test_a_breakdown_is_reported_as_a_user_error(monkeypatch):
     problem = build(example_scenario("club-compression"))
     level = problem.surface.level(0)
@@ -215,4 +226,4 @@ def test_a_breakdown_is_reported_as_a_user_error(monkeypatch):
 
     monkeypatch.setattr(level, "volume_and_gradient", poisoned)
     with pytest.raises(IsochorError, match="broke down on level 0"):
-        run(solve(problem.surface, problem.nodes, problem.fixed))
+        run(solve(problem.surface, problem.nodes, problem.fixed, start_level=0))
