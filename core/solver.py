@@ -101,11 +101,19 @@ def lbfgs(
             d = -g
         if not s_hist:  # first step: a move of at most 1% of the object size
             d = d * min(1.0, 0.01 / max(np.max(np.abs(d)), 1e-300))
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", "The line search algorithm")
-            alpha, *_ = line_search(
-                lambda z: evaluate(z)[0], lambda z: evaluate(z)[1], x, d, g, f, f_old, maxiter=30
-            )
+        slope = g @ d
+        alpha = None
+        if s_hist:  # the quasi-Newton step usually fits: take it when it decreases enough
+            f_try, g_try, _ = evaluate(x + d)
+            if f_try <= f + 1e-4 * slope and abs(g_try @ d) <= 0.9 * abs(slope):
+                alpha = 1.0
+        if alpha is None:
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", "The line search algorithm")
+                alpha, *_ = line_search(
+                    lambda z: evaluate(z)[0], lambda z: evaluate(z)[1], x, d, g, f, f_old,
+                    maxiter=30,
+                )
         if alpha is None:  # Wolfe search failed: backtrack on sufficient decrease only
             alpha = 1.0
             while alpha > 1e-12 and evaluate(x + alpha * d)[0] > f + 1e-4 * alpha * (g @ d):
