@@ -1,0 +1,174 @@
+"""``run_editor``: start the editor, or take a screenshot of it and exit.
+
+This module imports only the standard library at import time, so the command line can
+call :func:`run_editor` on a machine without a display (or without Qt) and get one line
+of explanation and a non-zero exit code instead of a Qt abort.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+#: Exit codes.
+OK, FAILED = 0, 1
+NO_DISPLAY = FAILED  # like the command line's other environment errors
+
+NO_DISPLAY_MESSAGE = (
+    "isochor: no display available (neither DISPLAY nor WAYLAND_DISPLAY is set); "
+    "the editor needs one - use `isochor solve SCENARIO` to solve without a window"
+)
+
+
+def display_problem() -> str | None:
+    """Why no window can be opened here, or None when a display is available."""
+    if not sys.platform.startswith("linux"):
+        return None
+    wayland = os.environ.get("WAYLAND_DISPLAY")
+    x11 = os.environ.get("DISPLAY")
+    if not wayland and not x11:
+        return NO_DISPLAY_MESSAGE
+    if x11 and not wayland and not _x_display_opens(x11):
+        return (f"isochor: cannot connect to the X display {x11!r}; "
+                "use `isochor solve SCENARIO` to solve without a window")
+    return None
+
+
+def _x_display_opens(name: str) -> bool:
+    """Try to open the X display with libX11, as Qt would (Qt aborts when it cannot).
+
+    When libX11 itself cannot be loaded, say yes and let Qt decide."""
+    import ctypes  # noqa: PLC0415
+    import ctypes.util  # noqa: PLC0415
+
+    lib = ctypes.util.find_library("X11")
+    try:
+        x11 = ctypes.CDLL(lib or "libX11.so.6")
+    except OSError:
+        return True
+    x11.XOpenDisplay.restype = ctypes.c_void_p
+    x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    handle = x11.XOpenDisplay(name.encode())
+    if not handle:
+        return False
+    x11.XCloseDisplay(handle)
+    return True
+
+
+def run_editor(path: str | None, screenshot: str | None = None) -> int:
+    """Open the editor on ``path`` (a model or scenario; None: the default example).
+
+    With ``screenshot``, solve the document's scenario to the end with the normal
+    progressive redraw, save a PNG of the whole window there and return 0.
+
+    Returns the process exit code: 0, or 1 with one line on standard error (no display,
+    the GUI libraries are missing, or in screenshot mode a file or the solve failed).
+    """
+    problem = display_problem()
+    if problem is not None:
+        print(problem, file=sys.stderr)
+        return NO_DISPLAY
+    try:
+        import pyvistaqt  # noqa: F401, PLC0415
+        from PySide6.QtWidgets import QApplication  # noqa: PLC0415
+    except ImportError as exc:
+        print(f"isochor: the editor needs PySide6 and pyvistaqt ({exc}); "
+              "use `isochor solve SCENARIO` to solve without a window", file=sys.stderr)
+        return FAILED
+
+    from app import style  # noqa: PLC0415
+    from app.document import Document  # noqa: PLC0415
+    from core.errors import IsochorError  # noqa: PLC0415
+
+    app = QApplication.instance() or QApplication([sys.argv[0] if sys.argv else "isochor"])
+    app.setApplicationName("Isochor")
+    app.setOrganizationName("Isochor")
+    style.apply_dark_theme(app)
+
+    from app.mainwindow import MainWindow  # noqa: PLC0415 (imports VTK: after the checks)
+
+    if path is None:
+        doc = Document.example()
+    else:
+        try:
+            doc = Document.open(path)
+        except IsochorError as exc:
+            if screenshot:
+                print(f"isochor: {exc}", file=sys.stderr)
+                return FAILED
+            # Open the window anyway, on the example, and say what went wrong.
+            doc = Document.example()
+            window = MainWindow(doc)
+            window.show()
+            window._error("Cannot open the file", str(exc))  # noqa: SLF001
+            return _exec(app, window)
+
+    window = MainWindow(doc)
+    if screenshot:
+        return take_screenshot(app, window, screenshot)
+    window.show()
+    return _exec(app, window)
+
+
+def _exec(app, window) -> int:
+    code = app.exec()
+    window.shutdown()
+    return int(code)
+
+
+def take_screenshot(app, window, out: str | Path, timeout: float | None = None) -> int:
+    """Show ``window``, let its solve run to the end, save a PNG of it; the exit code."""
+    from PySide6.QtCore import QEventLoop, QTimer  # noqa: PLC0415
+
+    window.headless_errors = True
+    # A local loop, not app.exec()/app.quit(): quitting the application would make every
+    # later event loop in this process return at once (it matters to tests).
+    loop = QEventLoop()
+    window.resize(1400, 880)
+    window.show()
+    result = {"code": OK}
+
+    def shoot():
+        if result.get("shot"):
+            return
+        result["shot"] = True
+        try:
+            window._on_frame()  # noqa: SLF001 (draw the final nodes now)
+            app.processEvents()
+            save_window_png(window, out)
+        except OSError as exc:
+            print(f"isochor: cannot write {out}: {exc}", file=sys.stderr)
+            result["code"] = FAILED
+        window.undo_stack.setClean()
+        window.close()
+        loop.quit()
+
+    def done(_gen, ok):
+        if not ok and window.last_result is None:
+            result["code"] = FAILED
+        QTimer.singleShot(250, shoot)
+
+    if window.is_solving():
+        window.solveDone.connect(done)
+    else:
+        QTimer.singleShot(400, shoot)
+    if timeout is not None:
+        QTimer.singleShot(int(timeout * 1000), shoot)
+    if not result.get("shot"):
+        loop.exec()
+    window.shutdown()
+    return result["code"]
+
+
+def save_window_png(window, out: str | Path) -> None:
+    """Grab the whole window and write it as PNG through a temporary file and a rename."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    image = window.grab().toImage()
+    tmp = out.with_name(f".{out.name}.tmp.png")
+    if not image.save(str(tmp), "PNG"):
+        tmp.unlink(missing_ok=True)
+        raise OSError("the image could not be encoded")
+    os.replace(tmp, out)

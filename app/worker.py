@@ -1,0 +1,141 @@
+"""The solver worker: iterates the core's solve generator on a background thread.
+
+The thread only iterates the generator and emits Qt signals carrying the immutable
+``Progress`` records and the final ``SolveResult``; it never touches a widget, VTK or
+pyvista. Signals cross to the GUI thread as queued events.
+
+Every solve has a generation id, carried by each signal. Starting a solve stops the one
+before it: a stop flag is set, which the thread checks between records, and the thread
+then closes the generator itself (a generator must be closed by the thread running it).
+The flag is set under the same lock the thread holds while it emits, so once
+:meth:`SolveWorker.stop` returns, the stopped solve emits nothing more; records it emitted
+earlier may still be queued, and the receiver drops them by their generation id.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import traceback
+from collections.abc import Callable
+
+import numpy as np
+from PySide6.QtCore import QObject, Signal
+
+from core.errors import IsochorError
+from core.multilevel import solve
+from core.solver import SolverOptions
+
+
+class _Job:
+    """One solve on one thread."""
+
+    def __init__(self, worker: SolveWorker, generation: int, make: Callable) -> None:
+        self.worker = worker
+        self.generation = generation
+        self.make = make
+        self.stop_flag = threading.Event()
+        self.lock = threading.Lock()
+        self.thread = threading.Thread(target=self.run, name=f"isochor-solve-{generation}",
+                                       daemon=True)
+
+    def stop(self) -> None:
+        with self.lock:
+            self.stop_flag.set()
+
+    def _emit(self, signal, payload) -> bool:
+        with self.lock:
+            if self.stop_flag.is_set():
+                return False
+            signal.emit(self.generation, payload)
+            return True
+
+    def run(self) -> None:
+        w = self.worker
+        try:
+            gen = self.make()
+            try:
+                while not self.stop_flag.is_set():
+                    try:
+                        record = next(gen)
+                    except StopIteration as stop:
+                        self._emit(w.finished, stop.value)
+                        return
+                    self._emit(w.progress, record)
+            finally:
+                gen.close()  # on this thread, which is the one running it
+        except IsochorError as exc:
+            self._emit(w.failed, str(exc))
+        except Exception as exc:  # noqa: BLE001 (a solver bug must reach the user, not kill Qt)
+            traceback.print_exc(file=sys.stderr)
+            self._emit(w.failed, f"The solver failed unexpectedly: {type(exc).__name__}: {exc}")
+        finally:
+            self.make = None  # drop the references to the problem
+
+
+class SolveWorker(QObject):
+    """Runs one solve at a time in the background.
+
+    Signals (all carry the generation id first)
+    -------------------------------------------
+    progress(int, Progress) : every record the generator yields
+    finished(int, SolveResult) : the generator returned
+    failed(int, str) : the solve raised; the message is meant for a dialog
+    """
+
+    progress = Signal(int, object)
+    finished = Signal(int, object)
+    failed = Signal(int, str)
+
+    def __init__(self, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self._generation = 0
+        self._job: _Job | None = None
+        self._stopped: list[_Job] = []
+
+    @property
+    def generation(self) -> int:
+        """The id of the newest solve (running or not)."""
+        return self._generation
+
+    def is_running(self) -> bool:
+        job = self._job
+        return job is not None and job.thread.is_alive() and not job.stop_flag.is_set()
+
+    def start(self, surface, nodes: np.ndarray, fixed: np.ndarray, *, target_ratio: float,
+              options: SolverOptions | None = None) -> int:
+        """Stop the running solve and start a new one; returns its generation id."""
+        self.stop()
+        self._generation += 1
+        nodes = np.array(nodes, dtype=np.float64)
+        fixed = np.array(fixed, dtype=bool)
+
+        def make():
+            return solve(surface, nodes, fixed, target_ratio=target_ratio, options=options)
+
+        job = _Job(self, self._generation, make)
+        self._job = job
+        job.thread.start()
+        return self._generation
+
+    def stop(self) -> None:
+        """Stop the running solve; it emits nothing after this returns."""
+        job, self._job = self._job, None
+        if job is not None:
+            job.stop()
+            self._stopped.append(job)
+        self._stopped = [j for j in self._stopped if j.thread.is_alive()]
+
+    def shutdown(self, timeout: float = 0.5) -> bool:
+        """Stop everything and wait up to ``timeout`` seconds in total for the threads.
+
+        Returns True when every thread ended. A thread still inside a long step ends on
+        its own after that step, emitting nothing (it is a daemon thread)."""
+        import time  # noqa: PLC0415
+
+        self.stop()
+        deadline = time.monotonic() + timeout
+        for job in self._stopped:
+            job.thread.join(max(0.0, deadline - time.monotonic()))
+        self._stopped = [j for j in self._stopped if j.thread.is_alive()]
+        return not self._stopped

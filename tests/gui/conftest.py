@@ -1,0 +1,91 @@
+"""GUI tests: the real window driven with pytest-qt under a virtual X display.
+
+pytest-xvfb starts Xvfb for the session when it is installed; without it, a DISPLAY or
+WAYLAND_DISPLAY must already be set. Every test here is skipped, with the reason, when
+PySide6 or pyvistaqt cannot be imported or no display can be had.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+MODELS = Path(__file__).resolve().parents[3] / "shared" / "models"
+
+try:
+    import PySide6  # noqa: F401
+    import pytestqt  # noqa: F401
+    import pyvistaqt  # noqa: F401
+
+    _IMPORT_PROBLEM = None
+except ImportError as exc:  # pragma: no cover - depends on the environment
+    _IMPORT_PROBLEM = f"GUI libraries missing: {exc}"
+
+
+def _display_problem() -> str | None:
+    if _IMPORT_PROBLEM:
+        return _IMPORT_PROBLEM
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                 or os.environ.get("WAYLAND_DISPLAY")):
+        return "no display: install Xvfb and pytest-xvfb, or run under xvfb-run"
+    return None
+
+
+def pytest_collection_modifyitems(config, items):
+    reason = _display_problem()
+    here = Path(__file__).parent
+    for item in items:
+        if here in Path(str(item.fspath)).parents:
+            item.add_marker(pytest.mark.gui)
+            if reason:
+                item.add_marker(pytest.mark.skip(reason=reason))
+
+
+@pytest.fixture(scope="session")
+def themed_app(qapp):
+    from app import style
+
+    style.apply_dark_theme(qapp)
+    return qapp
+
+
+def wait_idle(qtbot, win, timeout=60_000):
+    """Wait until the window's solve ended and its last frame was drawn."""
+    qtbot.waitUntil(lambda: not win.is_solving(), timeout=timeout)
+    qtbot.waitUntil(lambda: win._pending is None, timeout=5_000)  # noqa: SLF001
+
+
+def open_window(qtbot, doc=None, size=(1100, 760)):
+    from app.mainwindow import MainWindow
+
+    win = MainWindow(doc)
+    qtbot.addWidget(win, before_close_func=lambda w: w.undo_stack.setClean())
+    win.resize(*size)
+    win.show()
+    qtbot.waitExposed(win)
+    return win
+
+
+@pytest.fixture
+def window(qtbot, themed_app):
+    """The editor on its default example, with the opening solve finished."""
+    win = open_window(qtbot)
+    wait_idle(qtbot, win)
+    yield win
+    win.undo_stack.setClean()
+    win.close()
+
+
+def distinct_colours(qimage) -> int:
+    """How many distinct RGB colours an image has."""
+    from PySide6.QtGui import QImage
+
+    img = qimage.convertToFormat(QImage.Format.Format_RGB32)
+    w, h = img.width(), img.height()
+    buf = np.frombuffer(img.constBits(), dtype=np.uint32, count=img.bytesPerLine() * h // 4)
+    buf = buf.reshape(h, img.bytesPerLine() // 4)[:, :w]
+    return len(np.unique(buf & 0xFFFFFF))
