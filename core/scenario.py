@@ -159,6 +159,11 @@ class Scenario:
     @classmethod
     def read(cls, path: str | Path) -> Scenario:
         path = Path(path)
+        if path.suffix.lower() in {".obj", ".ply", ".stl", ".off"}:
+            raise IsochorError(
+                f"{path}: this is a model, not a scenario file; open it with `isochor edit`, "
+                "or name it as model.path in a scenario"
+            )
         try:
             text = path.read_text(encoding="utf-8")
         except FileNotFoundError:

@@ -254,3 +254,13 @@ def test_cow_bend_scenario_is_the_papers_setup():
     assert sorted(m.node for m in sc.moves) == [(4, j, k) for j in (0, 1) for k in (0, 1)]
     assert sorted(sc.pins) == [(0, j, k) for j in (0, 1) for k in (0, 1)]
     assert all(m.by[1] > 0 for m in sc.moves)  # the head end goes up
+
+
+def test_a_model_given_as_a_scenario_says_what_to_do(tmp_path):
+    from core.errors import IsochorError
+    from core.scenario import Scenario
+
+    model = tmp_path / "cube.obj"
+    model.write_text("v 0 0 0\n")
+    with pytest.raises(IsochorError, match="this is a model, not a scenario file"):
+        Scenario.read(model)
