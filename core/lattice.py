@@ -28,6 +28,14 @@ MIN_NODES, MAX_NODES = 2, 10
 #: tensor-product form instead of one dense matrix (64 MB of float64).
 DENSE_LIMIT = 8_000_000
 
+#: Above this many entries the factored form is also faster than the dense matrix (measured:
+#: docs/BENCHMARKS.md), so a basis between the two limits keeps the dense matrix for callers
+#: that read it but evaluates in factored form.
+DENSE_FASTER = 262_144
+
+#: Points per block of the factored basis products (their temporaries stay in cache).
+BASIS_BLOCK = 1 << 13
+
 
 def bernstein(degree: int, t: np.ndarray) -> np.ndarray:
     """Bernstein polynomials ``B_i^degree(t)`` for i = 0..degree.
@@ -50,9 +58,17 @@ class PointBasis:
     """The FFD basis of a fixed point set: maps node positions to point positions.
 
     The weight of node (i, j, k) on point p is ``Bu[p, i] * Bv[p, j] * Bw[p, k]``. Small point
-    sets keep the dense ``(p, nodes)`` matrix (one matmul per evaluation); large ones keep
-    the factored form ``Buv (p, l*m)`` and ``Bw (p, n)``: memory ``p*(l*m + n)`` instead of
-    ``p*l*m*n``.
+    sets keep the dense ``(p, nodes)`` matrix (``dense``: one matrix product per evaluation);
+    large ones keep only the factored form ``Buv (p, l*m)`` and ``Bw (p, n)``: memory
+    ``p*(l*m + n)`` instead of ``p*l*m*n``. Between ``DENSE_FASTER`` and ``DENSE_LIMIT``
+    entries both are kept and the faster factored form evaluates.
+
+    The arrays are stored point-minor (``dense``, ``buv`` and ``bw`` are transposed views of
+    C-ordered ``(columns, p)`` arrays) and :meth:`apply` returns its ``(p, 3)`` result as a
+    view of a coordinate-major ``(3, p)`` buffer (Fortran order): three contiguous rows x, y,
+    z, the layout :class:`core.volume.VolumeOperator` works in; :meth:`apply_transpose`
+    reads such a gradient without copying. The factored products run over blocks of
+    ``BASIS_BLOCK`` points so that their temporaries stay in the CPU cache.
     """
 
     def __init__(self, bu: np.ndarray, bv: np.ndarray, bw: np.ndarray) -> None:
@@ -60,42 +76,64 @@ class PointBasis:
         m, n = bv.shape[1], bw.shape[1]
         self.shape = (l, m, n)
         self.n_points = p
-        buv = (bu[:, :, None] * bv[:, None, :]).reshape(p, l * m)
-        if p * l * m * n <= DENSE_LIMIT:
-            self.dense: np.ndarray | None = (buv[:, :, None] * bw[:, None, :]).reshape(p, -1)
-            self.buv = self.bw = None
-        else:
-            self.dense = None
-            self.buv = buv
-            self.bw = np.ascontiguousarray(bw)
+        buv_t = (bu.T[:, None, :] * bv.T[None, :, :]).reshape(l * m, p)
+        bw_t = np.ascontiguousarray(np.asarray(bw).T)
+        self._dense_t: np.ndarray | None = None
+        self.dense: np.ndarray | None = None
+        self.buv = self.bw = self._buv_t = self._bw_t = None
+        size = p * l * m * n
+        if size <= DENSE_LIMIT:
+            self._dense_t = (buv_t[:, None, :] * bw_t[None, :, :]).reshape(l * m * n, p)
+            self.dense = self._dense_t.T
+        if size > min(DENSE_LIMIT, DENSE_FASTER):
+            self._buv_t, self._bw_t = buv_t, bw_t
+            self.buv, self.bw = buv_t.T, bw_t.T
 
     @property
     def nbytes(self) -> int:
         """Memory held by the basis, in bytes."""
-        if self.dense is not None:
-            return int(self.dense.nbytes)
-        return int(self.buv.nbytes + self.bw.nbytes)
+        held = [self._dense_t, self._buv_t, self._bw_t]
+        return int(sum(a.nbytes for a in held if a is not None))
 
     def apply(self, nodes: np.ndarray) -> np.ndarray:
-        """Deformed points ``(p, 3)`` for node positions ``(l*m*n, 3)``."""
-        if self.dense is not None:
-            return self.dense @ nodes
+        """Deformed points ``(p, 3)`` for node positions ``(l*m*n, 3)``.
+
+        The result is a Fortran-ordered view of a ``(3, p)`` array (see the class notes)."""
+        nodes = np.asarray(nodes, dtype=np.float64)
+        if self._buv_t is None:
+            return (nodes.T @ self._dense_t).T
         l, m, n = self.shape
-        x = nodes.reshape(l * m, n, 3)
-        out = np.zeros((self.n_points, 3))
-        for k in range(n):
-            out += self.bw[:, k, None] * (self.buv @ x[:, k, :])
-        return out
+        lm, p = l * m, self.n_points
+        # x_t[(k, c), ij] = nodes[(ij, k), c]
+        x_t = nodes.reshape(lm, n, 3).transpose(1, 2, 0).reshape(3 * n, lm)
+        out = np.empty((3, p))
+        width = max(1, min(BASIS_BLOCK, p))
+        y = np.empty((n, 3, width))
+        for s in range(0, p, width):
+            t = min(s + width, p)
+            yb = y if t - s == width else y[:, :, : t - s]
+            np.matmul(x_t, self._buv_t[:, s:t], out=yb.reshape(3 * n, t - s))
+            yb *= self._bw_t[:, None, s:t]
+            yb.sum(axis=0, out=out[:, s:t])
+        return out.T
 
     def apply_transpose(self, point_values: np.ndarray) -> np.ndarray:
         """Chain rule (paper Eq 11): per-point ``(p, 3)`` -> per-node ``(l*m*n, 3)``."""
-        if self.dense is not None:
-            return self.dense.T @ point_values
+        v = np.asarray(point_values, dtype=np.float64).T  # (3, p), contiguous if Fortran
+        if self._buv_t is None:
+            return np.ascontiguousarray((v @ self._dense_t.T).T)
         l, m, n = self.shape
-        out = np.empty((l * m, n, 3))
-        for k in range(n):
-            out[:, k, :] = self.buv.T @ (self.bw[:, k, None] * point_values)
-        return out.reshape(l * m * n, 3)
+        lm, p = l * m, self.n_points
+        acc = np.zeros((3 * n, lm))
+        width = max(1, min(BASIS_BLOCK, p))
+        z = np.empty((n, 3, width))
+        for s in range(0, p, width):
+            t = min(s + width, p)
+            zb = z if t - s == width else z[:, :, : t - s]
+            np.multiply(self._bw_t[:, None, s:t], v[None, :, s:t], out=zb)
+            acc += zb.reshape(3 * n, t - s) @ self._buv_t[:, s:t].T
+        # acc[(k, c), ij] -> out[(ij, k), c]
+        return np.ascontiguousarray(acc.reshape(n, 3, lm).transpose(2, 0, 1)).reshape(lm * n, 3)
 
 
 @dataclass(frozen=True, eq=False)
