@@ -11,6 +11,7 @@ energy is zero for the rest lattice and for any rigid motion of it.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 #: Undirected neighbour offsets: 3 axis directions and 4 body diagonals. Each node meets
 #: each offset forwards and backwards, hence 6 + 8 = 14 neighbours.
@@ -48,6 +49,14 @@ class SpringNetwork:
         self.stiffness = float(stiffness)
         self.rest_lengths = self.lengths(rest_nodes)
         self.n_nodes = len(rest_nodes)
+        # (nodes, springs): +1 at a spring's end node, -1 at its start node; gathers the
+        # spring forces onto the nodes in one sparse product.
+        s = len(self.edges)
+        self._incidence_t = sp.csr_matrix(
+            (np.r_[np.ones(s), -np.ones(s)],
+             (np.r_[self.edges[:, 1], self.edges[:, 0]], np.r_[np.arange(s), np.arange(s)])),
+            shape=(self.n_nodes, s),
+        )
 
     @classmethod
     def for_lattice(cls, shape: tuple[int, int, int], rest_nodes: np.ndarray) -> SpringNetwork:
@@ -71,7 +80,5 @@ class SpringNetwork:
         # d|d|/d(end) = d/|d|; a zero-length spring pulls in no defined direction.
         safe = np.where(length > 0, length, 1.0)
         force = (self.stiffness * stretch / safe)[:, None] * d
-        grad = np.zeros((self.n_nodes, 3))
-        np.add.at(grad, self.edges[:, 1], force)
-        np.add.at(grad, self.edges[:, 0], -force)
+        grad = self._incidence_t @ force
         return energy, grad

@@ -204,10 +204,10 @@ def test_default_options_are_the_paper_tolerances():
     assert o.tol_nodes == 1e-3 and o.tol_volume == 5e-4
 
 
-def test_default_schedule_starts_at_a_few_hundred_triangles(compression):
+def test_default_schedule_starts_at_about_a_thousand_triangles(compression):
     problem, _, paper = compression
     records, result = run(solve(problem.surface, problem.nodes, problem.fixed))
-    assert records[0].triangles == 256 and result.levels[0].triangles == 256
+    assert records[0].triangles == 1024 and result.levels[0].triangles == 1024
     assert result.converged and abs(result.rel_volume_error) <= 5e-4
     # the same equilibrium as the paper's schedule from 16 triangles
     assert np.max(np.abs(result.nodes - paper.nodes)) < 2e-3 * problem.surface.size
