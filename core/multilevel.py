@@ -101,10 +101,16 @@ class _Level:
         self.basis: PointBasis = lattice.basis(mesh.vertices)
         self.volume_op = VolumeOperator(mesh.faces, mesh.n_vertices)
         self.center = center
+        self._last: tuple[bytes | None, float] = (None, 0.0)
         self.rest_volume = self.volume(lattice.rest_nodes)
 
     def volume(self, nodes: np.ndarray) -> float:
-        return self.volume_op(self.basis.apply(nodes), self.center)
+        # One-entry memo: the stopping test and the result ask the full mesh for the
+        # volume of the same nodes, and on a big mesh that is the costliest call there is.
+        key = nodes.tobytes()
+        if self._last[0] != key:
+            self._last = (key, self.volume_op(self.basis.apply(nodes), self.center))
+        return self._last[1]
 
     def volume_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
         v, dv_dp = self.volume_op.value_and_gradient(self.basis.apply(nodes), self.center)

@@ -82,7 +82,7 @@ def _subdivide(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nda
     return verts, faces
 
 
-def sphere_levels(n_levels: int = 7, radius: float = 1.0) -> list[TriMesh]:
+def sphere_levels(n_levels: int = 6, radius: float = 1.0) -> list[TriMesh]:
     """Icospheres with 20, 80, 320, ... triangles."""
     v, f = _ICO_V / np.linalg.norm(_ICO_V[0]), _ICO_F
     out = []
@@ -110,7 +110,7 @@ def club_lattice() -> tuple[Lattice, np.ndarray]:
     return lattice, nodes
 
 
-def club_levels(n_levels: int = 7) -> list[TriMesh]:
+def club_levels(n_levels: int = 6) -> list[TriMesh]:
     """The rounded club sampled like the sphere: 20, 80, 320, ... triangles."""
     lattice, nodes = club_lattice()
     return [_outward(TriMesh(lattice.deform(m.vertices, nodes), m.faces))
