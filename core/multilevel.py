@@ -253,7 +253,7 @@ def solve(
     v, dv = first.volume_and_gradient(x)
     if np.max(np.abs(dv[free])) * size / v_ref < 1e-9:
         raise IsochorError(
-            "The free nodes cannot change the model's volume: free nodes that influence "
+            "The free nodes cannot change the model's volume: choose free nodes that influence "
             "the model, or pin fewer nodes."
         )
     # The first record comes before any work on the fine levels, so a window can redraw
