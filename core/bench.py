@@ -58,6 +58,7 @@ import scipy.sparse as sp  # noqa: E402
 from core.lattice import Lattice  # noqa: E402
 from core.mesh import TriMesh  # noqa: E402
 from core.multilevel import EmbeddedSurface, SolveResult, solve  # noqa: E402
+from core.scenario import atomic_write_text  # noqa: E402
 from core.solver import SolverOptions  # noqa: E402
 from core.volume import VolumeOperator  # noqa: E402
 
@@ -537,7 +538,7 @@ def scale_row(mesh: TriMesh, shape: tuple[int, int, int], repeats: int,
     setup = time.perf_counter() - t
     rng = np.random.default_rng(0)
     x = lattice.rest_nodes + rng.normal(scale=0.02 * lattice.size, size=(lattice.n_nodes, 3))
-    center = (mesh.vertices.min(axis=0) + mesh.vertices.max(axis=0)) / 2
+    center = mesh.center
 
     def evaluate():
         v, g = op.value_and_gradient(basis.apply(x), center)
@@ -1190,9 +1191,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         text = render(env, quick, repeats, rows, t2rows, profile, sweep, scale, arma, latency,
                       targets, figures, notes, _kept_part(out), t2paper)
         out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(f".{out.name}.tmp")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, out)
+        atomic_write_text(out, text)
         print(f"\nWrote {out}")
     return 0
 

@@ -150,18 +150,12 @@ class EmbeddedSurface:
     @cached_property
     def size(self) -> float:
         """Object size: the largest bounding-box extent of the full mesh."""
-        lo, hi = self._bounds
-        return float((hi - lo).max())
+        return self.full.size
 
     @cached_property
     def center(self) -> np.ndarray:
-        lo, hi = self._bounds
-        return (lo + hi) / 2
-
-    @cached_property
-    def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        vt = np.ascontiguousarray(self.full.vertices.T)  # 8x faster than axis=0 on (m, 3)
-        return vt.min(axis=1), vt.max(axis=1)
+        """Centre of the full mesh's bounding box."""
+        return self.full.center
 
     def level(self, k: int) -> _Level:
         k = k % len(self.levels)

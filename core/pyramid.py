@@ -69,8 +69,8 @@ def build_pyramid(
     ratio : triangle ratio between neighbouring levels
     notes : when given, gets one line per rejected level (why), for benchmarks and tests
     """
-    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
-    center, size = (lo + hi) / 2, float((hi - lo).max())
+    lo, hi = mesh.bounds
+    center, size = mesh.center, mesh.size
     if not size > 0:
         return [mesh]
     unit = TriMesh((mesh.vertices - center) / size, mesh.faces)

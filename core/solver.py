@@ -119,7 +119,7 @@ def lbfgs(
                 )
         if alpha is None:  # Wolfe search failed: backtrack on sufficient decrease only
             alpha = 1.0
-            while alpha > 1e-12 and evaluate(x + alpha * d)[0] > f + 1e-4 * alpha * (g @ d):
+            while alpha > 1e-12 and evaluate(x + alpha * d)[0] > f + 1e-4 * alpha * slope:
                 alpha *= 0.25
             if alpha <= 1e-12:
                 return x, it, False
