@@ -1,12 +1,23 @@
-"""Isochor's desktop editor: PySide6 + pyvistaqt. The only package that imports them.
+"""Isochor's desktop editor and command line: PySide6 + pyvistaqt, imported only here.
 
-- :mod:`app.window`     ``run_editor``: the display check, the Qt application, screenshot mode
-- :mod:`app.mainwindow` the main window: menus, toolbar, docks, status bar, solve scheduling
-- :mod:`app.viewport`   the 3D view: actors, node picking, dragging, box selection
-- :mod:`app.document`   the editable state (Qt-free): model, lattice, node positions and flags
-- :mod:`app.worker`     the solver worker: the core generator on a background thread
-- :mod:`app.undo`       undo commands: one per completed edit, never per solver step
-- :mod:`app.panel`      the side panel (selection, pins, solve options, lattice, display)
-- :mod:`app.plot`       the live convergence plot (QPainter, log scale)
-- :mod:`app.style`      colours and the application look
+Arrows point down: ``launch -> mainwindow -> (actions, files, controller, viewport, panel,
+plot) -> (document, picking, scene, worker, commands) -> isochor.core``.
+
+- :mod:`.cli`         ``isochor``: the editor, ``solve``, ``examples`` (Qt only for the editor)
+- :mod:`.launch`      ``run_editor``: the display check, the Qt application, screenshot mode
+- :mod:`.mainwindow`  the window shell: docks, status bar, session signals to widgets
+- :mod:`.actions`     the actions, menus and toolbar
+- :mod:`.files`       open, save, export, the unsaved-changes prompt
+- :mod:`.controller`  the editing session (a QObject, no widgets): document, undo stack,
+  solver worker, frame scheduling
+- :mod:`.document`    the editor model (Qt-free): states, edit rules, selection, drag session
+- :mod:`.commands`    undo commands acting on the document
+- :mod:`.worker`      the solve generator on a background thread; records reach the GUI by
+  queued signals
+- :mod:`.viewport`    the 3D view: camera, overlays, mouse and key gestures
+- :mod:`.scene`       the view's actors, updated in place per frame
+- :mod:`.picking`     projection and picking maths (numpy only)
+- :mod:`.panel`       the Inspector: selection, pins, solve options, lattice, display
+- :mod:`.plot`        the live convergence plot (QPainter, log scale)
+- :mod:`.style`       colours and the application look
 """

@@ -7,7 +7,7 @@
     isochor solve SCENARIO.json [--out deformed.ply] [--report report.json]
     isochor solve --example NAME [--out ...] [--report ...]
     isochor examples                          list the built-in examples
-    isochor bench [--quick] [...]             the paper's benchmark
+    isochor --version
 
 Exit status: 0 success; 1 a user error (bad file, open mesh, unwritable output: one line
 ``isochor: <message>`` on standard error); 2 a usage error; 3 the solve ran but did not
@@ -28,7 +28,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from core.errors import IsochorError  # (no numpy yet: the BLAS setting below still counts)
 
 # One BLAS thread unless the user says otherwise: the lattice products are small and the
 # solver shares the cores with the window; measured under load, a 125-node basis product
@@ -36,9 +35,12 @@ from core.errors import IsochorError  # (no numpy yet: the BLAS setting below st
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+from .. import __version__
+from ..core.errors import IsochorError  # (no numpy yet: the BLAS setting above still counts)
+
 if TYPE_CHECKING:
-    from core.multilevel import SolveResult
-    from core.scenario import Problem
+    from ..core.multilevel import SolveResult
+    from ..core.problem import Problem
 
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
@@ -46,8 +48,6 @@ EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_INTERRUPTED = 0, 1, 2,
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (the console script exits with it)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "bench":  # the benchmark parses its own options
-        return _bench(argv[1:])
     args = _parser().parse_args(argv)
     try:
         return args.run(args)
@@ -73,13 +73,17 @@ def _parser() -> argparse.ArgumentParser:
         description="Volume-preserving free-form deformation (Hirota, Maheshwari, Lin 1999). "
         "Without a command, opens the editor.",
     )
-    parser.set_defaults(run=_edit, file=None, screenshot=None)
+    parser.add_argument("--version", action="version", version=f"isochor {__version__}")
+    parser.set_defaults(run=_edit, file=None, screenshot=None, timeout=None)
     sub = parser.add_subparsers(title="commands", metavar="COMMAND")
 
     edit = sub.add_parser("edit", help="open a scenario (.json) or a model in the editor")
     edit.add_argument("file", type=Path, help="scenario .json, or an OBJ/PLY/STL/OFF model")
     edit.add_argument("--screenshot", type=Path, metavar="PNG",
-                      help="render the window to this image and exit")
+                      help="solve, render the window to this image and exit")
+    edit.add_argument("--timeout", type=float, default=None, metavar="SECONDS",
+                      help="with --screenshot: take the picture after this long even if the "
+                      "solve has not ended (default 300)")
     edit.set_defaults(run=_edit)
 
     solve = sub.add_parser("solve", help="solve a scenario without a window",
@@ -98,38 +102,23 @@ def _parser() -> argparse.ArgumentParser:
 
     examples = sub.add_parser("examples", help="list the built-in examples")
     examples.set_defaults(run=_examples)
-
-    sub.add_parser("bench", help="the paper's benchmark (isochor bench --help)")
     return parser
 
 
 # -- edit ---------------------------------------------------------------------------------
 def _edit(args: argparse.Namespace) -> int:
     try:
-        from app.window import run_editor  # noqa: PLC0415 (Qt only for the editor)
+        from .launch import run_editor  # Qt is imported only for the editor
     except ImportError as exc:
         return _fail(f"the editor cannot start: {exc}")
     file = str(args.file) if args.file is not None else None
     shot = str(args.screenshot) if args.screenshot is not None else None
-    return int(run_editor(file, shot) or 0)
-
-
-# -- bench --------------------------------------------------------------------------------
-def _bench(argv: list[str]) -> int:
-    try:
-        from core import bench  # noqa: PLC0415
-    except ModuleNotFoundError as exc:
-        if exc.name != "core.bench":
-            raise
-        print("isochor: the benchmark (core.bench) is not part of this installation",
-              file=sys.stderr)
-        return EXIT_USAGE
-    return int(bench.main(argv) or 0)
+    return int(run_editor(file, shot, timeout=args.timeout) or 0)
 
 
 # -- examples -----------------------------------------------------------------------------
 def _examples(args: argparse.Namespace) -> int:
-    from core.examples import EXAMPLES  # noqa: PLC0415
+    from ..core.examples import EXAMPLES
 
     width = max(len(n) for n in EXAMPLES)
     for name, text in EXAMPLES.items():
@@ -139,14 +128,18 @@ def _examples(args: argparse.Namespace) -> int:
 
 # -- solve --------------------------------------------------------------------------------
 def _solve(args: argparse.Namespace) -> int:
-    from core.mesh import TriMesh  # noqa: PLC0415
-    from core.meshio import WRITE_FORMATS, count_bodies, mesh_bytes  # noqa: PLC0415
-    from core.scenario import Scenario, atomic_write_bytes, build  # noqa: PLC0415
+    from ..core.mesh import TriMesh
+    from ..core.formats import WRITE_FORMATS
+    from ..core.meshio import mesh_bytes
+    from ..core.repair import count_bodies
+    from ..core.atomic import atomic_write_bytes
+    from ..core.problem import build
+    from ..core.scenario import Scenario
 
     _check_output(args.out, WRITE_FORMATS)
     _check_output(args.report, None)
     if args.example is not None:
-        from core.examples import example_scenario  # noqa: PLC0415
+        from ..core.examples import example_scenario
 
         scenario, source = example_scenario(args.example), f"example {args.example}"
     else:
@@ -198,7 +191,8 @@ def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:
     -------
     core.multilevel.SolveResult
     """
-    from core.multilevel import solve  # noqa: PLC0415
+    from ..core.generators import run_to_end
+    from ..core.multilevel import solve
 
     sc = problem.scenario
     run = solve(problem.surface, problem.nodes, problem.fixed,
@@ -206,23 +200,18 @@ def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:
     if out is not None:
         print(f"{'level':>5} {'triangles':>10} {'max dX %':>9} {'steps':>6} {'ms':>8} "
               f"{'|dV|/V0':>9}", file=out, flush=True)
-    last = 0.0
-    try:
-        while True:
-            try:
-                p = next(run)
-            except StopIteration as stop:
-                return stop.value
-            if p.level_done and out is not None:
-                change = 100 * p.max_node_change if p.max_node_change is not None else 0.0
-                print(f"{p.level:>5} {p.triangles:>10} {change:>9.3f} {p.step:>6} "
-                      f"{1000 * (p.elapsed - last):>8.1f} {abs(p.rel_volume_error):>9.2e}",
-                      file=out, flush=True)
-            if p.level_done:
-                last = p.elapsed
-    except BaseException:
-        run.close()
-        raise
+    last = [0.0]
+
+    def row(p) -> None:
+        if p.level_done and out is not None:
+            change = 100 * p.max_node_change if p.max_node_change is not None else 0.0
+            print(f"{p.level:>5} {p.triangles:>10} {change:>9.3f} {p.step:>6} "
+                  f"{1000 * (p.elapsed - last[0]):>8.1f} {abs(p.rel_volume_error):>9.2e}",
+                  file=out, flush=True)
+        if p.level_done:
+            last[0] = p.elapsed
+
+    return run_to_end(run, row)
 
 
 def make_report(problem: Problem, result: SolveResult, source: str, time_s: float,

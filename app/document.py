@@ -1,131 +1,40 @@
-"""The editable document: a built problem plus the node state the user is working on.
+"""The editor model: the document, its edit rules, the selection and the drag session.
 
-Qt-free, so it can be tested and reasoned about without a window.
+Qt-free, so every rule is tested headless (``tests/test_document.py``); the window and the
+session controller only call these methods and draw what they return. The states it holds
+are :mod:`isochor.app.state`'s.
 
-The state the user edits is a :class:`DocState`: the problem (model pyramid + lattice), the
-node positions, which nodes are pinned and which were moved by the user, the target volume
-and whether the solver already ran on exactly this state. A moved node counts as pinned
-until it is unpinned (then both flags clear and the solver may move it again).
+Undo works on :class:`StateCell` objects: mutable boxes around one ``DocState``. The current
+cell is shared between the undo command that produced it (its ``after``) and the next command
+(its ``before``). When a solve started from a cell ends, :meth:`Document.record_result` puts
+the solved state into that cell, so undo and redo land on solved states without solving again.
 
-Undo works on :class:`StateCell` objects: mutable boxes around one ``DocState``. The
-current cell is shared between the undo command that produced it (its ``after``) and the
-next command (its ``before``). When a solve started from a cell finishes, the cell is
-updated in place with the solved nodes, so undo and redo land on solved states without
-solving again.
+Edits start from the nodes the user sees (:meth:`Document.base_nodes`): the newest
+intermediate nodes of a running solve, or with "preserve volume" off the plain FFD (free nodes
+at rest).
 """
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from core.errors import IsochorError
-from core.examples import example_scenario
-from core.mesh import TriMesh
-from core.scenario import Move, Problem, Scenario, build, model_levels
+from ..core.errors import IsochorError
+from ..core.examples import example_scenario
+from ..core.formats import READ_FORMATS, SCENARIO_SUFFIXES, is_model, is_scenario, listing
+from ..core.lattice import MAX_NODES, MIN_NODES
+from ..core.mesh import TriMesh
+from ..core.meshio import save_mesh
+from ..core.problem import Problem, build, model_levels
+from ..core.scenario import Move, Scenario
+from .state import DocState, SolveSummary, StateCell, describe_status, initial_state, plural
 
-#: File suffixes opened as models; everything else must be a scenario (.json).
-MODEL_SUFFIXES = (".obj", ".ply", ".stl", ".off")
-SCENARIO_SUFFIXES = (".json",)
-#: Lattice resolution the editor offers per axis.
-LATTICE_MIN, LATTICE_MAX = 2, 8
-
-
-def _ro(a: np.ndarray, dtype=None) -> np.ndarray:
-    a = np.array(a, dtype=dtype)
-    a.flags.writeable = False
-    return a
-
-
-@dataclass(frozen=True, eq=False)
-class DocState:
-    """One complete editable state. Arrays are read-only copies."""
-
-    problem: Problem
-    nodes: np.ndarray  #: (n, 3) node positions
-    pinned: np.ndarray  #: (n,) bool, pinned by the user (at any position)
-    moved: np.ndarray  #: (n,) bool, placed by the user; fixed until unpinned
-    target_ratio: float = 1.0
-    solved: bool = False  #: the solver ran to its end on exactly these nodes and flags
-    converged: bool = True  #: when solved: whether it met the tolerances
-    message: str = ""  #: when solved: the solver's note, if any
-
-    def __post_init__(self) -> None:
-        n = self.problem.surface.lattice.n_nodes
-        object.__setattr__(self, "nodes", _ro(np.reshape(self.nodes, (n, 3)), np.float64))
-        object.__setattr__(self, "pinned", _ro(np.reshape(self.pinned, n), bool))
-        object.__setattr__(self, "moved", _ro(np.reshape(self.moved, n), bool))
-
-    @property
-    def fixed(self) -> np.ndarray:
-        """(n,) bool: nodes the solver may not move (pinned or moved)."""
-        return self.pinned | self.moved
-
-    @property
-    def surface(self):
-        return self.problem.surface
-
-    @property
-    def lattice(self):
-        return self.problem.surface.lattice
-
-    def with_(self, **changes) -> DocState:
-        changes.setdefault("solved", False)
-        changes.setdefault("converged", True)
-        changes.setdefault("message", "")
-        return replace(self, **changes)
-
-    def moved_to(self, nodes: np.ndarray, rows) -> DocState:
-        """The user placed ``rows`` at ``nodes[rows]``: they become moved (fixed)."""
-        moved = self.moved.copy()
-        moved[np.asarray(rows, dtype=int)] = True
-        return self.with_(nodes=nodes, moved=moved)
-
-    def pinned_as(self, rows, pin: bool) -> DocState:
-        """Pin ``rows``, or unpin them (which also clears their moved flag)."""
-        rows = np.asarray(rows, dtype=int)
-        pinned, moved = self.pinned.copy(), self.moved.copy()
-        pinned[rows] = pin
-        if not pin:
-            moved[rows] = False
-        return self.with_(pinned=pinned, moved=moved)
-
-    def same_edit(self, other: DocState) -> bool:
-        """True when both describe the same edit (nodes, flags, target, problem)."""
-        return (self.problem is other.problem and self.target_ratio == other.target_ratio
-                and np.array_equal(self.nodes, other.nodes)
-                and np.array_equal(self.pinned, other.pinned)
-                and np.array_equal(self.moved, other.moved))
-
-
-class StateCell:
-    """A mutable box around one :class:`DocState` (see the module notes on undo)."""
-
-    __slots__ = ("state",)
-
-    def __init__(self, state: DocState) -> None:
-        self.state = state
-
-    def __repr__(self) -> str:
-        return f"StateCell(solved={self.state.solved})"
-
-
-def initial_state(problem: Problem) -> DocState:
-    """The state a freshly built problem starts in: its moves applied, its pins set."""
-    sc = problem.scenario
-    lat = problem.surface.lattice
-    moved = np.zeros(lat.n_nodes, dtype=bool)
-    pinned = np.zeros(lat.n_nodes, dtype=bool)
-    for mv in sc.moves:
-        moved[lat.index(*mv.node)] = True
-    for p in sc.pins:
-        pinned[lat.index(*p)] = True
-    # Nothing fixed, nothing moved, volume kept: the rest lattice is already the answer.
-    trivially_solved = not moved.any() and sc.target_volume_ratio == 1.0
-    return DocState(problem, problem.nodes, pinned, moved, sc.target_volume_ratio,
-                    solved=trivially_solved)
+__all__ = ["Document", "DocState", "DragSession", "Edit", "SolveSummary", "StateCell",
+           "default_lattice_shape", "describe_status", "initial_state", "plural"]
 
 
 def default_lattice_shape(mesh: TriMesh) -> tuple[int, int, int]:
@@ -135,22 +44,86 @@ def default_lattice_shape(mesh: TriMesh) -> tuple[int, int, int]:
     return tuple(shape)
 
 
+@dataclass(frozen=True)
+class Edit:
+    """A new state and the words of its undo step."""
+
+    state: DocState
+    text: str
+
+
+class DragSession:
+    """A drag of the selected nodes: where it started and where the nodes are now.
+
+    ``free`` are the solver's nodes for the nodes not dragged: the start (no live solve) or
+    the newest live preview, given by the caller with every move.
+    """
+
+    def __init__(self, before: StateCell, rows: np.ndarray, base: np.ndarray) -> None:
+        self.before = before
+        self.rows = np.array(rows, dtype=int)
+        self.base = np.array(base, dtype=np.float64)
+        self.nodes = self.base.copy()
+
+    @property
+    def text(self) -> str:
+        return f"Move {plural(len(self.rows))}"
+
+    def move(self, delta, free: np.ndarray | None = None) -> np.ndarray:
+        """The nodes with the dragged ones at ``base + delta``; returns them."""
+        nodes = self.base.copy() if free is None else np.array(free, dtype=np.float64)
+        nodes[self.rows] = self.base[self.rows] + np.asarray(delta, dtype=np.float64)
+        self.nodes = nodes
+        return nodes
+
+    def with_dragged(self, nodes: np.ndarray) -> np.ndarray:
+        """``nodes`` (e.g. a live preview) with the dragged nodes where the cursor put them."""
+        out = np.array(nodes, dtype=np.float64)
+        out[self.rows] = self.nodes[self.rows]
+        return out
+
+    def fixed(self) -> np.ndarray:
+        """(n,) bool: what a live preview solve holds (the old fixed nodes and the dragged)."""
+        fixed = self.before.state.fixed.copy()
+        fixed[self.rows] = True
+        return fixed
+
+    def finish(self, free: np.ndarray | None = None) -> Edit:
+        """The edit the drag made; ``free`` are the newest live nodes, if any."""
+        nodes = self.nodes if free is None else self.with_dragged(free)
+        return Edit(self.before.state.moved_to(nodes, self.rows), self.text)
+
+
+Listener = Callable[[str], None]
+
+
 class Document:
-    """What the window edits: the current state cell, and where it came from.
+    """What the editor edits: the current state cell, the selection, the drag, the file.
+
+    Events (a listener gets the name): ``"state"`` the current cell changed (an edit, undo,
+    redo, a loaded result), ``"scene"`` the lattice or model changed with it, ``"selection"``.
 
     Attributes
     ----------
     cell : the current :class:`StateCell`
+    selection : (k,) int, the selected node rows, sorted
+    drag : the running :class:`DragSession`, if any
+    preserve : "preserve volume" is on (off: plain FFD, nothing is solved)
+    live_nodes : the newest nodes of a running solve (None when idle): the base of edits
     path : the scenario file this document was read from or saved to, if any
     title : a short name for the window title
     """
 
     def __init__(self, problem: Problem, *, path: Path | None = None, title: str = "") -> None:
         self.cell = StateCell(initial_state(problem))
+        self.selection = np.zeros(0, dtype=int)
+        self.drag: DragSession | None = None
+        self.preserve = True
+        self.live_nodes: np.ndarray | None = None
         self.path = path
         self.title = title or _model_title(problem.scenario)
-        self._surfaces: dict[tuple, object] = {}
-        prepare_surface(problem)
+        self._listeners: list[Listener] = []
+        self._problems: dict[tuple, Problem] = {_key(problem): problem}
 
     # -- constructors ----------------------------------------------------------------------
     @classmethod
@@ -158,27 +131,36 @@ class Document:
         return cls(build(example_scenario(name)), title=f"example: {name}")
 
     @classmethod
-    def open(cls, path: str | Path) -> Document:
+    def open(cls, path: str | Path, *, template: bool = False) -> Document:
         """A model (OBJ, PLY, STL, OFF) in a default lattice, or a scenario (.json).
 
-        Raises :class:`IsochorError` with a message to show as is."""
+        ``template``: open a scenario as a new, unsaved document (the shipped examples), so
+        that Save asks where to write. Raises :class:`IsochorError` with a message to show.
+        """
         path = Path(path).expanduser()
-        suffix = path.suffix.lower()
-        if suffix in SCENARIO_SUFFIXES:
+        if is_scenario(path):
             scenario = Scenario.read(path)
-            return cls(build(scenario), path=path.resolve(), title=path.name)
-        if suffix not in MODEL_SUFFIXES:
+            where = None if template else Path(os.path.abspath(path))
+            return cls(build(scenario), path=where, title=path.name)
+        if not is_model(path):
             raise IsochorError(
                 f"{path.name}: unknown file type {path.suffix or '(none)'}; open a model "
-                f"({', '.join(s[1:].upper() for s in MODEL_SUFFIXES)}) or a scenario (.json)."
+                f"({listing(READ_FORMATS)}) or a scenario ({listing(SCENARIO_SUFFIXES)})."
             )
         if not path.is_file():
             raise IsochorError(f"{path}: no such file")
-        scenario = Scenario.from_dict({"model": {"path": str(path.resolve())}})
+        scenario = Scenario.from_dict({"model": {"path": os.path.abspath(path)}})
         levels, warnings = model_levels(scenario)
         scenario = scenario.with_(lattice_nodes=default_lattice_shape(levels[-1]))
-        problem = build(scenario, levels=levels, warnings=warnings)
-        return cls(problem, title=path.name)
+        return cls(build(scenario, levels=levels, warnings=warnings), title=path.name)
+
+    # -- events ----------------------------------------------------------------------------
+    def subscribe(self, listener: Listener) -> None:
+        self._listeners.append(listener)
+
+    def _emit(self, event: str) -> None:
+        for listener in list(self._listeners):
+            listener(event)
 
     # -- state -----------------------------------------------------------------------------
     @property
@@ -193,29 +175,162 @@ class Document:
     def surface(self):
         return self.cell.state.problem.surface
 
-    def rebuilt(self, shape: tuple[int, int, int]) -> DocState:
-        """A state on a new lattice of ``shape`` nodes around the same model, at rest.
+    def set_cell(self, cell: StateCell) -> None:
+        """Make ``cell`` current (every edit, undo and redo comes through here)."""
+        old = self.cell.state.problem
+        self.cell = cell
+        self.drag = None
+        self.live_nodes = None
+        if cell.state.problem is not old:
+            self.selection = np.zeros(0, dtype=int)
+            self._emit("scene")
+        else:
+            self.selection = self.selection[self.selection < cell.state.lattice.n_nodes]
+        self._emit("state")
+
+    def needs_solve(self) -> bool:
+        """The current state should be solved: preserve is on and it never was."""
+        return self.preserve and not self.state.solved
+
+    def record_result(self, cell: StateCell, nodes, summary: SolveSummary) -> None:
+        """A solve started from ``cell`` ended: the cell holds the solved state from now
+        on (also when it is not current: undo and redo then land on it solved)."""
+        if nodes is None:
+            nodes = cell.state.nodes
+        cell.state = replace(cell.state, nodes=nodes, solved=True, result=summary)
+        if cell is self.cell:
+            self.live_nodes = None
+            self._emit("state")
+
+    def view_nodes(self, state: DocState | None = None) -> np.ndarray:
+        """What the view shows for a state: with "preserve volume" off, plain FFD (the free
+        nodes at rest, the fixed ones where the user put them)."""
+        st = self.state if state is None else state
+        if self.preserve:
+            return np.array(st.nodes)
+        return np.where(st.fixed[:, None], st.nodes, st.lattice.rest_nodes)
+
+    def base_nodes(self) -> np.ndarray:
+        """The nodes on screen, the base of every new edit."""
+        if self.live_nodes is not None and self.preserve:
+            return np.array(self.live_nodes)
+        return self.view_nodes()
+
+    # -- selection -------------------------------------------------------------------------
+    def select(self, rows, mode: str = "replace") -> bool:
+        """Change the selection: ``replace``, ``add``, or ``toggle`` the given rows.
+        Returns True when it changed."""
+        rows = np.unique(np.asarray(list(rows), dtype=int))
+        n = self.state.lattice.n_nodes
+        if len(rows) and (rows.min() < 0 or rows.max() >= n):
+            raise IndexError(f"node rows must lie in [0, {n})")
+        if mode == "add":
+            rows = np.union1d(self.selection, rows)
+        elif mode == "toggle":
+            rows = np.setxor1d(self.selection, rows)
+        elif mode != "replace":
+            raise ValueError(f"unknown selection mode {mode!r}")
+        if np.array_equal(rows, self.selection):
+            return False
+        self.selection = rows.astype(int)
+        self._emit("selection")
+        return True
+
+    def select_all(self) -> bool:
+        return self.select(range(self.state.lattice.n_nodes))
+
+    # -- edit rules: each returns the Edit to commit, or None when nothing would change ----
+    def edit_position(self, axis: int, value: float) -> Edit | None:
+        """Type a coordinate: the selection (its centre, for several) goes to ``value``."""
+        rows = self.selection
+        if len(rows) == 0 or not np.isfinite(value):
+            return None
+        nodes = self.base_nodes()
+        now = nodes[rows, axis].mean()
+        if abs(value - now) <= 1e-12 * max(1.0, abs(value)):
+            return None
+        nodes[rows, axis] += value - now
+        return Edit(self.state.moved_to(nodes, rows), f"Move {plural(len(rows))}")
+
+    def edit_pins(self, rows, pin: bool) -> Edit | None:
+        """Pin (or unpin) ``rows``; None means every node."""
+        st = self.state
+        rows = np.arange(st.lattice.n_nodes) if rows is None else np.asarray(rows, dtype=int)
+        if len(rows) == 0:
+            return None
+        changes = (~st.pinned[rows]).any() if pin else st.fixed[rows].any()
+        if not changes:
+            return None
+        new = st.edited(nodes=self.base_nodes()).pinned_as(rows, pin)
+        what = "all nodes" if len(rows) == st.lattice.n_nodes else plural(len(rows))
+        return Edit(new, f"{'Pin' if pin else 'Unpin'} {what}")
+
+    def edit_toggle_pin(self) -> Edit | None:
+        """Pin the selection, or unpin it when all of it is fixed already."""
+        rows = self.selection
+        if len(rows) == 0:
+            return None
+        return self.edit_pins(rows, not bool(self.state.fixed[rows].all()))
+
+    def edit_target(self, percent: float) -> Edit | None:
+        ratio = float(percent) / 100.0
+        if not ratio > 0 or ratio == self.state.target_ratio:
+            return None
+        return Edit(self.state.edited(nodes=self.base_nodes(), target_ratio=ratio),
+                    f"Target volume {percent:g} %")
+
+    def edit_reset(self) -> Edit | None:
+        """Every node back to rest, nothing pinned (at rest there is nothing to solve)."""
+        st = self.state
+        n = st.lattice.n_nodes
+        rest = st.lattice.rest_nodes
+        if not (st.pinned.any() or st.moved.any() or not np.array_equal(st.nodes, rest)):
+            return None
+        new = st.edited(nodes=rest, pinned=np.zeros(n, bool), moved=np.zeros(n, bool),
+                        solved=st.target_ratio == 1.0)
+        return Edit(new, "Reset nodes")
+
+    def edit_lattice(self, shape) -> Edit | None:
+        """A new lattice of ``shape`` nodes around the same model, at rest.
 
         Moves and pins are dropped (they name nodes of the old lattice); the model pyramid
-        is reused, and a surface built before for the same shape is reused with its caches.
+        is reused, and so is a problem built before for the same shape, with its caches.
         """
         shape = tuple(int(s) for s in shape)
-        if not all(LATTICE_MIN <= s <= LATTICE_MAX for s in shape):
-            raise IsochorError(
-                f"The editor offers {LATTICE_MIN} to {LATTICE_MAX} lattice nodes per axis."
-            )
+        if len(shape) != 3 or not all(MIN_NODES <= s <= MAX_NODES for s in shape):
+            raise IsochorError(f"A lattice has {MIN_NODES} to {MAX_NODES} nodes per axis.")
+        if shape == tuple(self.state.lattice.shape):
+            return None
         old = self.problem
         scenario = old.scenario.with_(lattice_nodes=shape, moves=(), pins=())
-        key = (shape, scenario.padding, scenario.frame)
-        problem = self._surfaces.get(key)
+        problem = self._problems.get(_key_of(scenario))
         if problem is None:
             problem = build(scenario, levels=list(old.surface.levels), warnings=old.warnings)
-            prepare_surface(problem)
-        self._surfaces[_key(old)] = old
-        state = initial_state(problem)
-        return state.with_(target_ratio=self.state.target_ratio,
-                           solved=self.state.target_ratio == 1.0)
+            self._problems[_key(problem)] = problem
+        ratio = self.state.target_ratio
+        state = replace(initial_state(problem), target_ratio=ratio, solved=ratio == 1.0)
+        return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape))
 
+    # -- the drag --------------------------------------------------------------------------
+    def begin_drag(self) -> DragSession | None:
+        """Start dragging the selection from the nodes on screen."""
+        if len(self.selection) == 0:
+            return None
+        self.drag = DragSession(self.cell, self.selection, self.base_nodes())
+        return self.drag
+
+    def end_drag(self) -> Edit | None:
+        """The edit of the drag (None when no drag runs); the drag is over."""
+        drag, self.drag = self.drag, None
+        if drag is None:
+            return None
+        live = self.live_nodes if self.preserve else None
+        return drag.finish(live)
+
+    def cancel_drag(self) -> None:
+        self.drag = None
+
+    # -- files -----------------------------------------------------------------------------
     def scenario(self) -> Scenario:
         """The current state as a scenario: moved nodes as ``to`` moves, pins, target."""
         st = self.state
@@ -229,34 +344,24 @@ class Document:
     def save(self, path: str | Path) -> None:
         path = Path(path)
         self.scenario().write(path)
-        self.path = path.resolve()
+        self.path = Path(os.path.abspath(path))
         self.title = path.name
 
     def deformed_mesh(self, nodes: np.ndarray | None = None) -> TriMesh:
-        """The full-resolution mesh deformed by ``nodes`` (default: the current nodes)."""
-        surface = self.surface
-        nodes = self.state.nodes if nodes is None else nodes
-        return TriMesh(surface.deform(nodes), surface.full.faces)
+        """The full-resolution mesh deformed by ``nodes`` (default: the nodes on screen)."""
+        nodes = self.base_nodes() if nodes is None else nodes
+        return TriMesh(self.surface.deform(nodes), self.surface.full.faces)
 
     def export(self, path: str | Path, nodes: np.ndarray | None = None) -> None:
-        try:
-            from core.meshio import save_mesh  # noqa: PLC0415
-        except ImportError as exc:
-            raise IsochorError(f"Mesh export is not available yet ({exc}).") from None
-        save_mesh(str(path), self.deformed_mesh(nodes))
+        save_mesh(path, self.deformed_mesh(nodes))
+
+
+def _key_of(scenario: Scenario) -> tuple:
+    return (tuple(scenario.lattice_nodes), scenario.padding, scenario.frame)
 
 
 def _key(problem: Problem) -> tuple:
-    sc = problem.scenario
-    return (tuple(sc.lattice_nodes), sc.padding, sc.frame)
-
-
-def prepare_surface(problem: Problem) -> None:
-    """Compute on the calling (GUI) thread what the display needs: the full level's basis
-    and the spring network. The solver thread computes the other levels lazily."""
-    surface = problem.surface
-    surface.level(-1)
-    _ = surface.springs
+    return _key_of(problem.scenario)
 
 
 def _model_title(scenario: Scenario) -> str:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import QEvent, QObject, Qt, Signal
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import (
     QCheckBox,
@@ -19,8 +19,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app import style
-from app.document import LATTICE_MAX, LATTICE_MIN
+from . import style
+from ..core.lattice import MAX_NODES, MIN_NODES
 
 
 def bind(action: QAction, box: QCheckBox) -> None:
@@ -31,8 +31,27 @@ def bind(action: QAction, box: QCheckBox) -> None:
                                        box.blockSignals(False)))
 
 
+class _WheelGuard(QObject):
+    """The mouse wheel scrolls the Inspector; it changes a spin box only after the user
+    clicked into it (a wheel passing over a field must not edit the document)."""
+
+    def eventFilter(self, obj, ev) -> bool:
+        if ev.type() == QEvent.Type.Wheel and not obj.hasFocus():
+            ev.ignore()  # the scroll area behind gets it
+            return True
+        return False
+
+
+def guard_wheel(box) -> None:
+    """Let ``box`` take focus only by click or Tab, and the wheel only while focused."""
+    box.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
+    box.wheel_guard = _WheelGuard(box)
+    box.installEventFilter(box.wheel_guard)
+
+
 def _spin(lo: float, hi: float, decimals: int, suffix: str = "") -> QDoubleSpinBox:
     s = QDoubleSpinBox()
+    guard_wheel(s)
     s.setRange(lo, hi)
     s.setDecimals(decimals)
     s.setKeyboardTracking(False)
@@ -125,7 +144,8 @@ class Panel(QWidget):
         self.shape = []
         for i, name in enumerate("XYZ"):
             s = QSpinBox()
-            s.setRange(LATTICE_MIN, LATTICE_MAX)
+            guard_wheel(s)
+            s.setRange(MIN_NODES, MAX_NODES)
             s.setAlignment(Qt.AlignmentFlag.AlignRight)
             s.setPrefix(f"{name}  ")
             lgrid.addWidget(s, 0, i)

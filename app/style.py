@@ -30,6 +30,18 @@ def hex_to_rgb(color: str) -> tuple[int, int, int]:
     return int(c[0:2], 16), int(c[2:4], 16), int(c[4:6], 16)
 
 
+def legend_html() -> str:
+    """The node colour legend of the 3D view, as rich text."""
+
+    def dot(color, label, big=False):
+        size = "15px" if big else "13px"
+        return f'<span style="color:{color}; font-size:{size}">&#9679;</span>&nbsp;{label}'
+
+    rows = [dot(FREE, "free"), dot(PINNED, "pinned"), dot(MOVED, "moved (fixed)"),
+            dot(SELECTED, "selected", True)]
+    return "&nbsp;&nbsp;&nbsp;".join(rows)
+
+
 def apply_dark_theme(app) -> None:
     """Fusion style with a dark palette: a calm frame around the 3D view."""
     from PySide6.QtGui import QColor, QPalette  # noqa: PLC0415

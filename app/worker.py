@@ -22,9 +22,9 @@ from collections.abc import Callable
 import numpy as np
 from PySide6.QtCore import QObject, Signal
 
-from core.errors import IsochorError
-from core.multilevel import solve
-from core.solver import SolverOptions
+from ..core.errors import IsochorError
+from ..core.multilevel import solve
+from ..core.solver import SolverOptions
 
 
 class _Job:

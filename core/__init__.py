@@ -12,6 +12,6 @@ Modules, in the order of the paper:
 - :mod:`core.shapes`     built-in parametric shapes sampled level by level (torus, sphere, club)
 """
 
-from core.errors import IsochorError
+from .errors import IsochorError
 
 __all__ = ["IsochorError"]

@@ -18,10 +18,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from core.errors import IsochorError
-from core.lattice import Lattice
-from core.scenario import Scenario
-from core.shapes import builtin_levels
+from .errors import IsochorError
+from .defaults import PADDING, TOL_NODES, TOL_VOLUME
+from .lattice import Lattice
+from .scenario import Scenario
+from .shapes import builtin_levels
 
 EXAMPLES: dict[str, str] = {
     "torus-compression": "Torus squashed to half its height in a 3x3x3 lattice (Plate 1)",
@@ -30,7 +31,6 @@ EXAMPLES: dict[str, str] = {
     "club-bend": "Rounded club bent along a 160-degree arc, 5x2x2 lattice (Plate 7)",
 }
 
-PADDING = 0.05
 
 
 @lru_cache(maxsize=None)
@@ -95,6 +95,6 @@ def example_scenario(name: str) -> Scenario:
         "moves": moves,
         "pins": [],
         "target_volume_ratio": 1.0,
-        "tolerance": {"volume": 5e-4, "nodes": 1e-3},
+        "tolerance": {"volume": TOL_VOLUME, "nodes": TOL_NODES},
     }
     return Scenario.from_dict(doc)

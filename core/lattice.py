@@ -20,7 +20,7 @@ from math import comb
 
 import numpy as np
 
-from core.errors import IsochorError
+from .errors import IsochorError
 
 MIN_NODES, MAX_NODES = 2, 10
 

@@ -29,12 +29,13 @@ from functools import cached_property
 
 import numpy as np
 
-from core.errors import IsochorError
-from core.lattice import Lattice, PointBasis
-from core.mesh import TriMesh
-from core.solver import LevelProblem, SolverOptions, augmented_lagrangian
-from core.springs import SpringNetwork
-from core.volume import VolumeOperator, signed_volume
+from .errors import IsochorError
+from .generators import relay
+from .lattice import Lattice, PointBasis
+from .mesh import TriMesh
+from .solver import LevelProblem, SolverOptions, augmented_lagrangian
+from .springs import SpringNetwork
+from .volume import VolumeOperator, signed_volume
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -281,21 +282,20 @@ def solve(
             center, size, target_ratio * level.rest_volume, v_ref,
         )
         run = augmented_lagrangian(problem, problem.to_y(x), lam, sigma, opts)
-        while True:
-            try:
-                it = next(run)
-            except StopIteration as stop:
-                al = stop.value
-                break
-            except FloatingPointError:
-                raise IsochorError(
-                    f"The solve broke down on level {k}: the lattice is folded so far that the "
-                    "volume has no usable gradient. Undo the last move or pin fewer nodes."
-                ) from None
-            yield Progress(
+
+        def progress(it, k=k, level=level, problem=problem):
+            return Progress(
                 _frozen(problem.to_nodes(it.y)), k, n_levels, level.triangles, it.step,
                 it.deviation, it.sigma, it.lam, it.energy, time.perf_counter() - t0,
             )
+
+        try:
+            al = yield from relay(run, progress)
+        except FloatingPointError:
+            raise IsochorError(
+                f"The solve broke down on level {k}: the lattice is folded so far that the "
+                "volume has no usable gradient. Undo the last move or pin fewer nodes."
+            ) from None
         x = problem.to_nodes(al.y)
         lam, sigma = al.lam, al.sigma
         change = float(np.max(np.abs(x - x_prev))) / size

@@ -22,13 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from core.lattice import Lattice
-from core.meshio import load_mesh
-from core.scenario import Scenario
+from .defaults import PADDING, TOL_NODES, TOL_VOLUME
+from .lattice import Lattice
+from .meshio import load_mesh
+from .scenario import Scenario
 
 #: the file name of the paper's cow in the shared models folder
 COW_FILE = "cow.obj"
-PADDING = 0.05
 
 
 def cow_bend_scenario(models_dir: str | Path) -> Scenario:
@@ -94,6 +94,6 @@ def _scenario(path: Path, nodes, moves: list[dict], pins: list[list[int]]) -> Sc
         "moves": moves,
         "pins": pins,
         "target_volume_ratio": 1.0,
-        "tolerance": {"volume": 5e-4, "nodes": 1e-3},
+        "tolerance": {"volume": TOL_VOLUME, "nodes": TOL_NODES},
     }
     return Scenario.from_dict(doc)

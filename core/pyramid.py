@@ -36,9 +36,9 @@ import threading
 
 import numpy as np
 
-from core.mesh import TriMesh
-from core.meshio import EdgeReport, body_labels, compact, drop_degenerate, drop_duplicates
-from core.volume import signed_volume
+from .mesh import TriMesh
+from .repair import EdgeReport, body_labels, compact, drop_degenerate, drop_duplicates
+from .volume import signed_volume
 
 #: fewest triangles a simplified body may have
 MIN_BODY = 8
@@ -63,7 +63,7 @@ def build_pyramid(
 
     Parameters
     ----------
-    mesh : a closed, outward-wound mesh (as :func:`core.meshio.load_mesh` returns)
+    mesh : a closed, outward-wound mesh (as :func:`isochor.core.meshio.load_mesh` returns)
     min_faces : no level has fewer triangles than this (about: the coarsest has
         ``min_faces`` to ``ratio * min_faces``)
     ratio : triangle ratio between neighbouring levels
@@ -150,7 +150,7 @@ def _coarser(bodies: list[TriMesh], checks: list[_BodyCheck], ratio: float,
 def simplify(mesh: TriMesh, target: int) -> TriMesh | None:
     """QEM-simplify ``mesh`` to about ``target`` triangles; tidy the result (drop
     degenerate and cancelling triangles and unused vertices). None if nothing is left."""
-    import fast_simplification  # noqa: PLC0415 (compiled extension, only needed here)
+    import fast_simplification  # compiled extension: imported on the first use
 
     with _LOCK:  # (the extension needs writable arrays: copies of the frozen ones)
         points, faces = fast_simplification.simplify(

@@ -18,26 +18,27 @@ Version 1::
 A moved node is fixed at its new place, a pinned node where it rests; all others are free.
 Relative model paths are relative to the scenario file. Unknown keys, wrong types,
 out-of-range nodes and unsupported versions raise :class:`IsochorError` naming the field.
+
+This module is the document only: reading, checking and writing it. Turning a scenario
+into something to solve (loading the model, fitting the lattice) is
+:mod:`isochor.core.problem`.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import tempfile
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from core.errors import IsochorError
-from core.lattice import MAX_NODES, MIN_NODES, Lattice
-from core.mesh import TriMesh
-from core.multilevel import EmbeddedSurface
-from core.shapes import builtin_levels
-from core.solver import SolverOptions
+from .atomic import atomic_write_text
+from .defaults import LATTICE_NODES, PADDING, TOL_NODES, TOL_VOLUME
+from .errors import IsochorError
+from .formats import is_model
+from .lattice import MAX_NODES, MIN_NODES
 
 FORMAT = "isochor-scenario"
 VERSION = 1
@@ -55,14 +56,14 @@ class Move:
 @dataclass(frozen=True)
 class Scenario:
     model: dict[str, Any]
-    lattice_nodes: tuple[int, int, int] = (3, 3, 3)
-    padding: float = 0.05
+    lattice_nodes: tuple[int, int, int] = LATTICE_NODES
+    padding: float = PADDING
     frame: tuple[tuple[float, ...], tuple[tuple[float, ...], ...]] | None = None
     moves: tuple[Move, ...] = ()
     pins: tuple[tuple[int, int, int], ...] = ()
     target_volume_ratio: float = 1.0
-    tol_volume: float = 5e-4
-    tol_nodes: float = 1e-3
+    tol_volume: float = TOL_VOLUME
+    tol_nodes: float = TOL_NODES
     base_dir: Path | None = field(default=None, compare=False)
 
     # -- JSON ---------------------------------------------------------------------------
@@ -87,10 +88,10 @@ class Scenario:
             raise IsochorError("model.builtin: must be a string")
         lat = doc.get("lattice", {})
         _check_keys(lat, "lattice", {"nodes", "padding", "frame"}, set())
-        shape = _int_triple(lat.get("nodes", [3, 3, 3]), "lattice.nodes")
+        shape = _int_triple(lat.get("nodes", list(LATTICE_NODES)), "lattice.nodes")
         if not all(MIN_NODES <= s <= MAX_NODES for s in shape):
             raise IsochorError(f"lattice.nodes: each axis needs {MIN_NODES} to {MAX_NODES} nodes")
-        padding = _number(lat.get("padding", 0.05), "lattice.padding")
+        padding = _number(lat.get("padding", PADDING), "lattice.padding")
         if not 0 < padding <= 10:
             raise IsochorError("lattice.padding: must be positive (a fraction of the extent)")
         frame = None
@@ -122,8 +123,8 @@ class Scenario:
             raise IsochorError("target_volume_ratio: must be positive")
         tol = doc.get("tolerance", {})
         _check_keys(tol, "tolerance", {"volume", "nodes"}, set())
-        tv = _number(tol.get("volume", 5e-4), "tolerance.volume")
-        tn = _number(tol.get("nodes", 1e-3), "tolerance.nodes")
+        tv = _number(tol.get("volume", TOL_VOLUME), "tolerance.volume")
+        tn = _number(tol.get("nodes", TOL_NODES), "tolerance.nodes")
         if not (0 < tv < 1 and 0 < tn < 1):
             raise IsochorError("tolerance: volume and nodes must be between 0 and 1")
         return cls(dict(model), shape, padding, frame, tuple(moves), pins, ratio, tv, tn,
@@ -159,7 +160,7 @@ class Scenario:
     @classmethod
     def read(cls, path: str | Path) -> Scenario:
         path = Path(path)
-        if path.suffix.lower() in {".obj", ".ply", ".stl", ".off"}:
+        if is_model(path):
             raise IsochorError(
                 f"{path}: this is a model, not a scenario file; open it with `isochor edit`, "
                 "or name it as model.path in a scenario"
@@ -184,109 +185,29 @@ class Scenario:
     def write(self, path: str | Path) -> None:
         """Write atomically: a temporary file in the same folder, then a rename.
 
-        A relative model path is rewritten relative to the new file's folder."""
+        The model path is written relative to the new file's folder, as the user sees the
+        folders (symbolic links are not resolved), so a folder moved with its scenario and
+        model still opens."""
         path = Path(path)
         doc = self.to_dict()
         if "path" in self.model:
             src = self.model_path()
             try:
-                doc["model"]["path"] = os.path.relpath(src, path.parent.resolve())
+                doc["model"]["path"] = os.path.relpath(src, os.path.abspath(path.parent))
             except ValueError:  # another drive on Windows
                 doc["model"]["path"] = str(src)
         atomic_write_text(path, json.dumps(doc, indent=2) + "\n")
 
     def model_path(self) -> Path:
+        """The model file as an absolute path (relative paths are taken from the
+        scenario's folder). Symbolic links are kept, not resolved."""
         p = Path(self.model["path"])
         if not p.is_absolute() and self.base_dir is not None:
             p = self.base_dir / p
-        return p.resolve()
+        return Path(os.path.abspath(p))
 
     def with_(self, **changes) -> Scenario:
         return replace(self, **changes)
-
-
-def atomic_write_text(path: str | Path, text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` atomically; see :func:`atomic_write_bytes`."""
-    atomic_write_bytes(path, text.encode("utf-8"))
-
-
-def atomic_write_bytes(path: str | Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename,
-    so that a failure (or Ctrl-C) never leaves a half-written file.
-
-    The new file gets the permissions of the file it replaces, or the usual ones for a new
-    file (0666 less the umask), not the private mode of the temporary file."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, _file_mode(path))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def _file_mode(path: Path) -> int:
-    try:
-        return path.stat().st_mode & 0o7777
-    except OSError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o666 & ~umask
-
-
-@dataclass
-class Problem:
-    """A scenario made ready to solve: the embedded surface, start nodes and pins."""
-
-    scenario: Scenario
-    surface: EmbeddedSurface
-    nodes: np.ndarray  #: (n, 3) start positions: rest lattice with the moves applied
-    fixed: np.ndarray  #: (n,) bool: moved or pinned
-    warnings: list[str] = field(default_factory=list)
-
-    @property
-    def options(self) -> SolverOptions:
-        return SolverOptions(tol_volume=self.scenario.tol_volume,
-                             tol_nodes=self.scenario.tol_nodes)
-
-
-#: ``path -> (levels coarse to fine, warnings)``; set by :mod:`core.meshio` for files.
-LevelLoader = Callable[[Path], tuple[list[TriMesh], list[str]]]
-
-
-def model_levels(scenario: Scenario, loader: LevelLoader | None = None):
-    """The level pyramid and load warnings of the scenario's model."""
-    if "builtin" in scenario.model:
-        params = {k: v for k, v in scenario.model.items() if k != "builtin"}
-        return builtin_levels(scenario.model["builtin"], **params), []
-    if loader is None:
-        from core.meshio import load_levels as loader  # noqa: PLC0415 (optional heavy import)
-    return loader(scenario.model_path())
-
-
-def build(scenario: Scenario, loader: LevelLoader | None = None,
-          levels: list[TriMesh] | None = None, warnings: list[str] | None = None) -> Problem:
-    """Load the model (unless ``levels`` are given), fit the lattice, apply moves and pins."""
-    if levels is None:
-        levels, warnings = model_levels(scenario, loader)
-    if scenario.frame is None:
-        lattice = Lattice.around(levels[-1].vertices, scenario.lattice_nodes, scenario.padding)
-    else:
-        lattice = Lattice(scenario.lattice_nodes, scenario.frame[0], scenario.frame[1])
-    nodes = lattice.rest_nodes.copy()
-    fixed = np.zeros(lattice.n_nodes, dtype=bool)
-    for mv in scenario.moves:
-        r = lattice.index(*mv.node)
-        nodes[r] = (nodes[r] + mv.by) if mv.by is not None else mv.to
-        fixed[r] = True
-    for p in scenario.pins:
-        fixed[lattice.index(*p)] = True
-    return Problem(scenario, EmbeddedSurface(lattice, levels), nodes, fixed, list(warnings or []))
 
 
 # -- validation helpers ---------------------------------------------------------------------

@@ -18,9 +18,10 @@ from math import pi
 
 import numpy as np
 
-from core.errors import IsochorError
-from core.lattice import Lattice
-from core.mesh import TriMesh
+from .errors import IsochorError
+from .lattice import Lattice
+from .mesh import TriMesh
+from .volume import signed_volume
 
 
 def torus(nu: int, nv: int, major: float = 1.0, minor: float = 0.4) -> TriMesh:
@@ -118,8 +119,6 @@ def club_levels(n_levels: int = 6) -> list[TriMesh]:
 
 
 def _outward(mesh: TriMesh) -> TriMesh:
-    from core.volume import signed_volume
-
     if signed_volume(mesh.vertices, mesh.faces) < 0:
         return TriMesh(mesh.vertices, mesh.faces[:, ::-1])
     return mesh

@@ -26,14 +26,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import line_search
 
+from .defaults import TOL_NODES, TOL_VOLUME
+from .generators import relay
+
 
 @dataclass(frozen=True)
 class SolverOptions:
     """Tolerances and limits; every length is relative to the object size, every volume to
     the reference volume, so the defaults suit any model."""
 
-    tol_volume: float = 5e-4  #: |dV| / V0 that counts as preserved
-    tol_nodes: float = 1e-3  #: epsilon: largest node change between levels (Sec 4.3)
+    tol_volume: float = TOL_VOLUME  #: |dV| / V0 that counts as preserved
+    tol_nodes: float = TOL_NODES  #: epsilon: largest node change between levels (Sec 4.3)
     sigma0: float = 10.0  #: first penalty factor
     sigma_max: float = 1e8  #: cap on the penalty factor (paper: "an upper bound for sigma")
     #: inner minimisation stops when max |dLa/dy| is below this (1e-6 cost 7-40% more time
@@ -240,14 +243,14 @@ def augmented_lagrangian(
             max_iter=options.max_inner,
             memory=options.memory,
         )
-        while True:
-            try:
-                y, (energy, g) = next(inner)
-            except StopIteration as stop:
-                y, _, _ = stop.value
-                break
+
+        def iterate(record, outer=outer, sigma=sigma, lam=lam):
+            nonlocal steps
             steps += 1
-            yield Iterate(y, energy, g, steps, outer, sigma, lam)
+            y_k, (energy_k, g_k) = record
+            return Iterate(y_k, energy_k, g_k, steps, outer, sigma, lam)
+
+        y, _, _ = yield from relay(inner, iterate)
         energy, _, g, _ = problem.terms(y)
         if abs(g) <= tol:
             return ALResult(y, lam, sigma, g, energy, steps, outer + 1, True)

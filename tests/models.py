@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.mesh import TriMesh
-from core.shapes import club_levels, sphere_levels
+from isochor.core.mesh import TriMesh
+from isochor.core.shapes import club_levels, sphere_levels
 
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
 
@@ -51,7 +51,7 @@ def available(name: str) -> Path | None:
 
 
 def trimesh_volume(path: Path) -> float:
-    """The volume trimesh measures for a file, independently of core.meshio."""
+    """The volume trimesh measures for a file, independently of isochor.core.meshio."""
     import trimesh
 
     mesh = trimesh.load_mesh(str(path), process=False)

@@ -1,4 +1,4 @@
-"""The ``isochor`` command line (app.cli), headless: no Qt is imported here."""
+"""The ``isochor`` command line (isochor.app.cli), headless: no Qt is imported here."""
 
 from __future__ import annotations
 
@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 import trimesh
 
-import core.multilevel
-from app import cli
-from app.cli import main
-from core.examples import EXAMPLES
-from core.meshio import load_mesh, mesh_bytes
-from core.paper_models import bend_scenario, cow_bend_scenario, squash_scenario
+import isochor.core.multilevel
+from isochor.app import cli
+from isochor.app.cli import main
+from isochor.core.examples import EXAMPLES
+from isochor.core.meshio import load_mesh, mesh_bytes
+from isochor.core.paper_models import bend_scenario, cow_bend_scenario, squash_scenario
 from tests.models import CLOSED, OPEN, available, icosphere, model, trimesh_volume
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,7 +73,7 @@ def test_model_solves_and_the_export_keeps_the_volume(tmp_path, capsys, name, ed
     assert status == 0, captured.err
     assert REPORT_KEYS <= set(report)
     assert report["converged"] is True
-    # the loaded model's volume, measured independently of core.meshio
+    # the loaded model's volume, measured independently of isochor.core.meshio
     if name == "cow_flipped_patch.obj":
         reference = trimesh_volume(model("cow.obj"))  # the repaired cow is the cow
     elif name.startswith("multibody"):
@@ -129,11 +129,11 @@ def test_cow_bending_plate_4(tmp_path, capsys):
 def test_example_solves_in_a_subprocess_without_qt(tmp_path):
     code = (
         "import sys\n"
-        "from app.cli import main\n"
+        "from isochor.app.cli import main\n"
         f"status = main(['solve', '--example', 'torus-compression', '--out', "
         f"{str(tmp_path / 't.stl')!r}, '--report', {str(tmp_path / 'r.json')!r}])\n"
         "qt = sorted(m for m in sys.modules if m.split('.')[0] in "
-        "{'PySide6', 'shiboken6', 'vtk', 'vtkmodules', 'pyvista', 'pyvistaqt', 'app.window'})\n"
+        "{'PySide6', 'shiboken6', 'vtk', 'vtkmodules', 'pyvista', 'pyvistaqt', 'isochor.app.window'})\n"
         "print('QT', qt)\n"
         "sys.exit(status)\n"
     )
@@ -151,7 +151,7 @@ def test_refused_model_in_a_subprocess_is_one_line(tmp_path):
     bad.write_bytes(mesh_bytes(icosphere(2), ".ply")[:700])
     scene = tmp_path / "s.json"
     scene.write_text(json.dumps({"model": {"path": "broken.ply"}}))
-    run = subprocess.run([sys.executable, "-m", "app.cli", "solve", str(scene), "--out",
+    run = subprocess.run([sys.executable, "-m", "isochor.app.cli", "solve", str(scene), "--out",
                           str(tmp_path / "o.ply")], cwd=ROOT, capture_output=True, text=True,
                          timeout=120, check=False)
     assert run.returncode == 1
@@ -242,7 +242,7 @@ def test_outputs_are_checked_before_solving(tmp_path, capsys, monkeypatch):
     def no_solve(*args, **kwargs):
         raise AssertionError("solved anyway")
 
-    monkeypatch.setattr(core.multilevel, "solve", no_solve)
+    monkeypatch.setattr(isochor.core.multilevel, "solve", no_solve)
     for argv, text in (
         (["--out", str(tmp_path / "x.off")], "x.off"),
         (["--out", str(tmp_path / "no" / "x.ply")], "does not exist"),
@@ -255,12 +255,12 @@ def test_outputs_are_checked_before_solving(tmp_path, capsys, monkeypatch):
 
 
 def test_unwritable_output_is_one_line(tmp_path, capsys, monkeypatch):
-    import core.scenario
+    import isochor.core.scenario
 
     def denied(*args, **kwargs):
         raise PermissionError(13, "Permission denied", str(tmp_path / "o.ply"))
 
-    monkeypatch.setattr(core.scenario.tempfile, "mkstemp", denied)
+    monkeypatch.setattr(isochor.core.atomic.tempfile, "mkstemp", denied)
     assert main(["solve", "--example", "torus-compression", "--out",
                  str(tmp_path / "o.ply")]) == 1
     err = capsys.readouterr().err
@@ -285,7 +285,7 @@ def test_not_converged_writes_outputs_and_exits_3(tmp_path, capsys, monkeypatch)
 
 # -- Ctrl-C -------------------------------------------------------------------------------
 def test_ctrl_c_stops_the_solve_and_writes_nothing(tmp_path, capsys, monkeypatch):
-    real = core.multilevel.solve
+    real = isochor.core.multilevel.solve
     closed = []
 
     def interrupted(*args, **kwargs):
@@ -298,7 +298,7 @@ def test_ctrl_c_stops_the_solve_and_writes_nothing(tmp_path, capsys, monkeypatch
         finally:
             closed.append(True)
 
-    monkeypatch.setattr(core.multilevel, "solve", interrupted)
+    monkeypatch.setattr(isochor.core.multilevel, "solve", interrupted)
     out, rep = tmp_path / "o.ply", tmp_path / "r.json"
     status = main(["solve", "--example", "torus-compression", "--out", str(out),
                    "--report", str(rep)])
@@ -308,10 +308,10 @@ def test_ctrl_c_stops_the_solve_and_writes_nothing(tmp_path, capsys, monkeypatch
 
 
 def test_ctrl_c_between_steps_closes_the_generator(monkeypatch):
-    from core.examples import example_scenario
-    from core.scenario import build
+    from isochor.core.examples import example_scenario
+    from isochor.core.problem import build
 
-    real = core.multilevel.solve
+    real = isochor.core.multilevel.solve
     state = {"closed": False, "records": 0}
 
     def watched(*args, **kwargs):
@@ -333,7 +333,7 @@ def test_ctrl_c_between_steps_closes_the_generator(monkeypatch):
         def flush(self):
             pass
 
-    monkeypatch.setattr(core.multilevel, "solve", watched)
+    monkeypatch.setattr(isochor.core.multilevel, "solve", watched)
     try:
         cli.run_solve(build(example_scenario("torus-compression")), Keyboard())
     except KeyboardInterrupt:
@@ -344,42 +344,31 @@ def test_ctrl_c_between_steps_closes_the_generator(monkeypatch):
         raise AssertionError("the interrupt was swallowed")
 
 
-# -- dispatch to the editor and the benchmark ---------------------------------------------
+# -- dispatch to the editor -------------------------------------------------------------
 def test_edit_and_no_command_open_the_editor_lazily(monkeypatch):
     calls = []
-    fake = types.ModuleType("app.window")
-    fake.run_editor = lambda path, shot: calls.append((path, shot)) or 7
-    monkeypatch.setitem(sys.modules, "app.window", fake)
-    assert main(["edit", "scene.json", "--screenshot", "s.png"]) == 7
+    fake = types.ModuleType("isochor.app.launch")
+    fake.run_editor = lambda path, shot, timeout=None: calls.append((path, shot, timeout)) or 7
+    monkeypatch.setitem(sys.modules, "isochor.app.launch", fake)
+    assert main(["edit", "scene.json", "--screenshot", "s.png", "--timeout", "9"]) == 7
     assert main([]) == 7
     assert main(["edit", "cow.obj"]) == 7
-    assert calls == [("scene.json", "s.png"), (None, None), ("cow.obj", None)]
+    assert calls == [("scene.json", "s.png", 9.0), (None, None, None), ("cow.obj", None, None)]
 
 
 def test_editor_that_cannot_start_is_one_line(monkeypatch, capsys):
-    monkeypatch.setitem(sys.modules, "app.window", None)  # import fails
+    monkeypatch.setitem(sys.modules, "isochor.app.launch", None)  # import fails
     assert main(["edit", "x.json"]) == 1
     err = capsys.readouterr().err
     assert err.startswith("isochor: the editor cannot start") and err.count("\n") == 1
 
 
-def test_bench_is_dispatched_with_its_arguments(monkeypatch, capsys):
-    seen = []
-    fake = types.ModuleType("core.bench")
-    fake.main = lambda argv: seen.append(argv) or 0
-    monkeypatch.setitem(sys.modules, "core.bench", fake)
-    import core
+def test_version_and_no_bench_command(capsys):
+    from isochor import __version__
 
-    monkeypatch.setattr(core, "bench", fake, raising=False)
-    assert main(["bench", "--quick"]) == 0
-    assert seen == [["--quick"]]
-
-
-def test_missing_bench_is_one_line_and_status_2(monkeypatch, capsys):
-    monkeypatch.setitem(sys.modules, "core.bench", None)
-    import core
-
-    monkeypatch.delattr(core, "bench", raising=False)
-    assert main(["bench"]) == 2
-    err = capsys.readouterr().err
-    assert "core.bench" in err and err.count("\n") == 1
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out == f"isochor {__version__}\n"
+    with pytest.raises(SystemExit) as exit_:  # the benchmark is `make bench`, not shipped
+        main(["bench"])
+    assert exit_.value.code == 2

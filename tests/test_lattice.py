@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from core import lattice as lat_mod
-from core.errors import IsochorError
-from core.lattice import Lattice, bernstein
+from isochor.core import lattice as lat_mod
+from isochor.core.errors import IsochorError
+from isochor.core.lattice import Lattice, bernstein
 
 
 def test_bernstein_partition_of_unity_and_endpoints():

@@ -1,4 +1,4 @@
-"""Reading, cleaning, checking and writing mesh files (core.meshio)."""
+"""Reading, cleaning, checking and writing mesh files (isochor.core.meshio)."""
 
 from __future__ import annotations
 
@@ -10,23 +10,17 @@ import pytest
 import trimesh
 from scipy.spatial import ConvexHull
 
-from core.errors import IsochorError
-from core.mesh import TriMesh
-from core.meshio import (
-    EdgeReport,
-    clean_closed_surface,
-    count_bodies,
-    load_levels,
-    load_mesh,
-    mesh_bytes,
-    save_mesh,
-)
-from core.volume import signed_volume
+from isochor.core.errors import IsochorError
+from isochor.core.mesh import TriMesh
+from isochor.core.meshio import load_mesh, mesh_bytes, save_mesh
+from isochor.core.problem import load_levels
+from isochor.core.repair import EdgeReport, clean_closed_surface, count_bodies
+from isochor.core.volume import signed_volume
 from tests.models import CLOSED, OPEN, icosphere, joined, model, trimesh_volume
 
 
 def write_obj(path, mesh: TriMesh) -> None:
-    """A plain OBJ written without core.meshio (so the reader is tested on its own)."""
+    """A plain OBJ written without isochor.core.meshio (so the reader is tested on its own)."""
     lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in mesh.vertices.tolist()]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh.faces.tolist()]
     path.write_text("\n".join(lines) + "\n")
@@ -196,9 +190,11 @@ def test_non_orientable_surface_is_refused():
 
 
 def test_flat_closed_surface_is_refused():
-    verts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])
-    faces = np.array([[0, 1, 2], [1, 3, 2], [0, 2, 1], [1, 2, 3]])  # both sides of a square
-    with pytest.raises(IsochorError):
+    # a tetrahedron with its four corners in one plane: closed, consistently wound, no
+    # duplicate triangles (nothing cancels), so the flatness check itself must refuse it
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.3, 0.3, 0.0]])
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    with pytest.raises(IsochorError, match="flat"):
         clean_closed_surface(verts, faces)
 
 
@@ -282,12 +278,12 @@ def test_save_is_atomic_and_keeps_normal_permissions(tmp_path, monkeypatch):
     assert mode & stat.S_IRGRP or os.name == "nt"  # not the 0600 of a temporary file
     before = path.read_bytes()
 
-    import core.scenario
+    import isochor.core.scenario
 
     def boom(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(core.scenario.os, "replace", boom)
+    monkeypatch.setattr(isochor.core.atomic.os, "replace", boom)
     with pytest.raises(KeyboardInterrupt):
         save_mesh(path, icosphere(2))
     assert path.read_bytes() == before

@@ -1,4 +1,4 @@
-"""The scenario document (core.scenario): validation, files, reproducible solves."""
+"""The scenario document (isochor.core.scenario): validation, files, reproducible solves."""
 
 from __future__ import annotations
 
@@ -10,13 +10,14 @@ import stat
 import numpy as np
 import pytest
 
-from core.errors import IsochorError
-from core.examples import EXAMPLES, example_scenario
-from core.mesh import TriMesh
-from core.meshio import save_mesh
-from core.multilevel import solve
-from core.paper_models import bend_scenario, cow_bend_scenario, squash_scenario
-from core.scenario import Scenario, build
+from isochor.core.errors import IsochorError
+from isochor.core.examples import EXAMPLES, example_scenario
+from isochor.core.mesh import TriMesh
+from isochor.core.meshio import save_mesh
+from isochor.core.multilevel import solve
+from isochor.core.paper_models import bend_scenario, cow_bend_scenario, squash_scenario
+from isochor.core.problem import build
+from isochor.core.scenario import Scenario
 from tests.models import MODELS, club, model
 
 GOOD = {
@@ -233,7 +234,7 @@ def _scaled_copy(sc: Scenario, path, factor: float) -> Scenario:
 @pytest.mark.parametrize("source", ["club", "kitten.obj"])
 def test_scaled_model_gives_the_scaled_result(tmp_path, club_file, source):
     path = club_file if source == "club" else model(source)
-    from core.meshio import load_mesh
+    from isochor.core.meshio import load_mesh
 
     mesh = load_mesh(path).mesh
     big = tmp_path / "big.ply"
@@ -257,8 +258,8 @@ def test_cow_bend_scenario_is_the_papers_setup():
 
 
 def test_a_model_given_as_a_scenario_says_what_to_do(tmp_path):
-    from core.errors import IsochorError
-    from core.scenario import Scenario
+    from isochor.core.errors import IsochorError
+    from isochor.core.scenario import Scenario
 
     model = tmp_path / "cube.obj"
     model.write_text("v 0 0 0\n")

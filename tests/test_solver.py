@@ -5,14 +5,14 @@ import inspect
 import numpy as np
 import pytest
 
-from core.errors import IsochorError
-from core.examples import example_scenario
-from core.lattice import Lattice
-from core.multilevel import EmbeddedSurface, solve
-from core.mesh import TriMesh
-from core.scenario import build
-from core.shapes import sphere_levels, torus_levels
-from core.solver import LevelProblem, SolverOptions
+from isochor.core.errors import IsochorError
+from isochor.core.examples import example_scenario
+from isochor.core.lattice import Lattice
+from isochor.core.multilevel import EmbeddedSurface, solve
+from isochor.core.mesh import TriMesh
+from isochor.core.problem import build
+from isochor.core.shapes import sphere_levels, torus_levels
+from isochor.core.solver import LevelProblem, SolverOptions
 from tests.numdiff import central_gradient
 
 
@@ -63,7 +63,7 @@ def test_torus_compression_restores_volume_and_bulges_symmetrically(compression)
     assert abs(result.rel_volume_error) <= 5e-4
     # measured independently on the full mesh
     full = problem.surface.full
-    from core.volume import signed_volume
+    from isochor.core.volume import signed_volume
     v = signed_volume(problem.surface.deform(result.nodes), full.faces)
     assert abs(v / signed_volume(full.vertices, full.faces) - 1) <= 5e-4
     # the fixed layers did not move; the middle layer moved outward in x-y only

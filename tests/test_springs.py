@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from core.lattice import Lattice
-from core.springs import SpringNetwork, lattice_springs
+from isochor.core.lattice import Lattice
+from isochor.core.springs import SpringNetwork, lattice_springs
 from tests.numdiff import central_gradient
 
 

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from core.lattice import Lattice
-from core.multilevel import EmbeddedSurface
-from core.shapes import sphere_levels, sphere_volume, torus_levels, torus_volume
-from core.volume import VolumeOperator, signed_volume
+from isochor.core.lattice import Lattice
+from isochor.core.multilevel import EmbeddedSurface
+from isochor.core.shapes import sphere_levels, sphere_volume, torus_levels, torus_volume
+from isochor.core.volume import VolumeOperator, signed_volume
 from tests.numdiff import central_gradient
 
 CUBE_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
@@ -69,8 +69,8 @@ def test_sampled_volume_converges_as_one_over_n(levels, exact):
 
 
 def test_builtin_shape_parameters_are_checked():
-    from core.errors import IsochorError
-    from core.shapes import builtin_levels
+    from isochor.core.errors import IsochorError
+    from isochor.core.shapes import builtin_levels
 
     assert [m.n_faces for m in builtin_levels("torus", n_levels=2)] == [16, 64]
     for bad in ({"n_levels": 14}, {"n_levels": 0}, {"n_levels": 2.5}, {"minor": "x"},

@@ -47,7 +47,7 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope="session")
 def themed_app(qapp):
-    from app import style
+    from isochor.app import style
 
     style.apply_dark_theme(qapp)
     return qapp
@@ -56,11 +56,11 @@ def themed_app(qapp):
 def wait_idle(qtbot, win, timeout=60_000):
     """Wait until the window's solve ended and its last frame was drawn."""
     qtbot.waitUntil(lambda: not win.is_solving(), timeout=timeout)
-    qtbot.waitUntil(lambda: win._pending is None, timeout=5_000)  # noqa: SLF001
+    qtbot.waitUntil(lambda: win.session._pending is None, timeout=5_000)  # noqa: SLF001
 
 
 def open_window(qtbot, doc=None, size=(1100, 760)):
-    from app.mainwindow import MainWindow
+    from isochor.app.mainwindow import MainWindow
 
     win = MainWindow(doc)
     qtbot.addWidget(win, before_close_func=lambda w: w.undo_stack.setClean())

@@ -64,7 +64,7 @@ def test_axis_lock_and_escape_during_a_drag(qtbot, window):
         QTest.mouseMove(vp, point(start + (10 + 8 * i, -10 - 12 * i)))
     QTest.mouseRelease(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
                        point(start + (50, -70)))
-    moved = win.last_solve_input[0][row] - before[row]
+    moved = win.session.last_solve_input[0][row] - before[row]
     assert abs(moved[2]) > 1e-3 * win.state.surface.size
     assert np.allclose(moved[:2], 0, atol=1e-12), "locked to z"
     wait_idle(qtbot, win)
@@ -80,7 +80,7 @@ def test_axis_lock_and_escape_during_a_drag(qtbot, window):
         QTest.mouseMove(vp, point(start + (5 + 10 * i, 5 + 6 * i)))
     QTest.mouseRelease(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
                        point(start + (55, 35)))
-    moved = win.last_solve_input[0][row] - before[row]
+    moved = win.session.last_solve_input[0][row] - before[row]
     assert abs(moved[2]) < 1e-9 and np.abs(moved[:2]).max() > 1e-3
     wait_idle(qtbot, win)
 
@@ -139,7 +139,7 @@ def test_preserve_off_is_plain_ffd(qtbot, window):
     shown = win.viewport.nodes
     assert np.allclose(shown[~fixed], rest[~fixed]) and np.allclose(shown[fixed],
                                                                      solved[fixed])
-    vol_plain = win.viewport.volume / win.state.surface.rest_volume
+    vol_plain = win.viewport.model_volume / win.state.surface.rest_volume
     assert vol_plain < 0.9, "the squashed torus loses volume without the constraint"
 
     row = pickable_node(win, want_free=True)
@@ -159,7 +159,7 @@ def test_target_volume_and_lattice_rebuild_are_undoable(qtbot, window):
     assert win.state.target_ratio == pytest.approx(0.8)
     wait_idle(qtbot, win)
     assert win.state.converged
-    assert win.viewport.volume / win.state.surface.rest_volume == pytest.approx(0.8, abs=1e-3)
+    assert win.viewport.model_volume / win.state.surface.rest_volume == pytest.approx(0.8, abs=1e-3)
     assert "target 80 %" in win.st_volume.text()
 
     cell_before_rebuild = win.doc.cell
@@ -171,7 +171,7 @@ def test_target_volume_and_lattice_rebuild_are_undoable(qtbot, window):
     assert not win.state.fixed.any()
     wait_idle(qtbot, win)
     assert win.state.target_ratio == pytest.approx(0.8)
-    assert win.viewport.volume / win.state.surface.rest_volume == pytest.approx(0.8, abs=1e-3)
+    assert win.viewport.model_volume / win.state.surface.rest_volume == pytest.approx(0.8, abs=1e-3)
 
     win.undo_stack.undo()  # the rebuild
     assert win.doc.cell is cell_before_rebuild
@@ -186,7 +186,7 @@ def test_target_volume_and_lattice_rebuild_are_undoable(qtbot, window):
 
 
 def test_save_reopen_and_export(qtbot, window, tmp_path):
-    from core.scenario import Scenario
+    from isochor.core.scenario import Scenario
 
     win = window
     row = pickable_node(win, want_free=True)
@@ -194,25 +194,25 @@ def test_save_reopen_and_export(qtbot, window, tmp_path):
     wait_idle(qtbot, win)
     assert "*" in win.windowTitle()
     path = tmp_path / "edit.json"
-    assert win._save_to(path)  # noqa: SLF001 (the file dialog is the only other step)
+    assert win.files.save_to(path)  # noqa: SLF001 (the file dialog is the only other step)
     assert "*" not in win.windowTitle() and win.undo_stack.isClean()
     sc = Scenario.read(path)
     assert len(sc.moves) == 19  # the example's 18 and the dragged node
     assert sc.model == {"builtin": "torus"}
 
     out = tmp_path / "deformed.ply"
-    pytest.importorskip("core.meshio")
-    from core.meshio import load_mesh
-    from core.volume import signed_volume
+    pytest.importorskip("isochor.core.meshio")
+    from isochor.core.meshio import load_mesh
+    from isochor.core.volume import signed_volume
 
-    assert win.export(out)
+    assert win.files.export(out)
     mesh = load_mesh(out).mesh
     assert mesh.n_faces == win.state.surface.full.n_faces
     v = signed_volume(mesh.vertices, mesh.faces)
     assert v / win.state.surface.rest_volume == pytest.approx(1.0, abs=1e-3)
 
     nodes = np.array(win.state.nodes)
-    assert win.open_path(path)
+    assert win.files.open_path(path)
     assert win.undo_stack.count() == 0 and win.doc.path == path.resolve()
     assert np.allclose(win.state.nodes[win.state.moved], nodes[win.state.moved])
     wait_idle(qtbot, win)
@@ -243,8 +243,8 @@ def test_unsaved_changes_prompt_on_close(qtbot, window, monkeypatch):
 def test_a_solver_failure_shows_the_message_and_keeps_the_edit(qtbot, window, monkeypatch):
     from PySide6.QtWidgets import QMessageBox
 
-    import app.worker
-    from core.errors import IsochorError
+    import isochor.app.worker
+    from isochor.core.errors import IsochorError
 
     win = window
     shown = []
@@ -255,7 +255,7 @@ def test_a_solver_failure_shows_the_message_and_keeps_the_edit(qtbot, window, mo
         raise IsochorError("The free nodes cannot change the model's volume.")
         yield  # pragma: no cover
 
-    monkeypatch.setattr(app.worker, "solve", broken)
+    monkeypatch.setattr(isochor.app.worker, "solve", broken)
     row = pickable_node(win, want_free=True)
     drag(qtbot, win, row)
     edit = np.array(win.state.nodes)
@@ -322,12 +322,14 @@ def test_dragging_one_of_several_selected_nodes_moves_them_all(qtbot, window):
     click(win, b, Qt.KeyboardModifier.ShiftModifier)
     before = np.array(win.state.nodes)
     drag(qtbot, win, a, offset=(30, 40))
-    start = win.last_solve_input[0]
+    start = win.session.last_solve_input[0]
     da, db = start[a] - before[a], start[b] - before[b]
     assert np.abs(da).max() > 1e-3 and np.allclose(da, db)
     assert win.state.moved[a] and win.state.moved[b]
     assert win.undo_stack.undoText() == "Move 2 nodes"
     wait_idle(qtbot, win)
+    assert win.state.converged, "the two-node move solves"
+    assert np.array_equal(win.state.nodes[[a, b]], start[[a, b]]), "both stay where dropped"
 
 
 def test_isochor_edit_screenshot_from_the_command_line(tmp_path):
@@ -337,13 +339,13 @@ def test_isochor_edit_screenshot_from_the_command_line(tmp_path):
 
     from PySide6.QtGui import QImage
 
-    from core.examples import example_scenario
+    from isochor.core.examples import example_scenario
     from tests.gui.conftest import distinct_colours
 
     scenario = tmp_path / "stretch.json"
     example_scenario("torus-stretch").write(scenario)
     out = tmp_path / "shot.png"
-    code = ("import sys; from app.cli import main; "
+    code = ("import sys; from isochor.app.cli import main; "
             f"sys.exit(main(['edit', {str(scenario)!r}, '--screenshot', {str(out)!r}]))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=300, env=dict(os.environ))

@@ -11,13 +11,13 @@ from tests.gui.conftest import distinct_colours, wait_idle
 # -- helpers ------------------------------------------------------------------------------
 def screen_positions(win):
     vp = win.viewport
-    xy, _, visible = vp.project(vp.nodes)
+    xy, _, visible = vp.projection().project(vp.nodes)
     return xy, visible
 
 
 def pickable_node(win, want_free=True, exclude=()):
     """A node well inside the view and clear of the others, so a click there picks it."""
-    from app.viewport import PICK_RADIUS
+    from isochor.app.picking import PICK_RADIUS
 
     vp = win.viewport
     xy, visible = screen_positions(win)
@@ -88,7 +88,7 @@ def test_window_opens_on_the_default_example_and_renders(window):
 def test_screenshot_option_writes_a_non_blank_png(themed_app, tmp_path):
     from PySide6.QtGui import QImage
 
-    from app.window import run_editor
+    from isochor.app.launch import run_editor
 
     out = tmp_path / "shot.png"
     assert run_editor(None, str(out)) == 0
@@ -100,7 +100,7 @@ def test_screenshot_option_writes_a_non_blank_png(themed_app, tmp_path):
 def test_no_display_prints_one_line_and_exits_non_zero(monkeypatch, capsys):
     import sys
 
-    from app.window import run_editor
+    from isochor.app.launch import run_editor
 
     monkeypatch.setattr(sys, "platform", "linux")
     monkeypatch.delenv("DISPLAY", raising=False)
@@ -122,18 +122,19 @@ def test_drag_moves_node_solves_progressively_and_undoes(qtbot, window):
     drag(qtbot, win, row)
     assert win.is_solving(), "releasing a drag starts a solve"
     gen = win.worker.generation
-    start_nodes = win.last_solve_input[0]
+    start_nodes = win.session.last_solve_input[0]
     assert not np.allclose(start_nodes[row], before[row]), "the dragged node moved"
     assert win.state.moved[row]
     wait_idle(qtbot, win)
 
     after = np.array(win.state.nodes)
-    assert win.frames_by_generation.get(gen, 0) >= 2, "progressive redraw during the solve"
-    assert win.redraws - redraws0 >= 3
+    # progressive: at least one intermediate record drawn during the solve, then the end
+    assert win.session.frames_by_generation.get(gen, 0) >= 1, "no intermediate frame drawn"
+    assert win.redraws - redraws0 >= 3, "the drag, an intermediate and the final frame"
     assert np.array_equal(after[row], start_nodes[row]), "a moved node is fixed"
     moved_free = np.abs(after - before).max(axis=1)[~before_fixed]
     assert moved_free.max() > 1e-4, "the free nodes followed"
-    res = win.last_result
+    res = win.session.last_result
     assert res.converged
     assert abs(res.rel_volume_error) <= win.state.problem.scenario.tol_volume
     assert win.undo_stack.count() == 1
@@ -161,10 +162,9 @@ def test_pin_and_unpin_change_what_the_solver_moves(qtbot, window):
     click(win, a)
     assert list(win.viewport.selection) == [a]
     win.activateWindow()
+    qtbot.waitUntil(lambda: win.isActiveWindow(), timeout=2000)
     QTest.keyClick(win.viewport, Qt.Key.Key_P)
-    if not win.state.pinned[a]:  # no active window (no window manager): use the action
-        win.act_pin.trigger()
-    assert win.state.pinned[a] and win.state.fixed[a]
+    assert win.state.pinned[a] and win.state.fixed[a], "the P key pins the selection"
     wait_idle(qtbot, win)
     pinned_at = np.array(win.state.nodes[a])
 
@@ -191,7 +191,8 @@ def test_pin_and_unpin_change_what_the_solver_moves(qtbot, window):
 
 
 def test_two_quick_drags_end_on_the_headless_solve_of_the_last(qtbot, window):
-    from core.multilevel import solve
+    from isochor.core.generators import run_to_end
+    from isochor.core.multilevel import solve
 
     win = window
     r1 = pickable_node(win, want_free=True)
@@ -204,22 +205,18 @@ def test_two_quick_drags_end_on_the_headless_solve_of_the_last(qtbot, window):
     assert g2 > g1
     wait_idle(qtbot, win)
 
-    log = list(win.accepted_log)
+    log = list(win.session.accepted_log)
     first_g2 = next(i for i, (g, _) in enumerate(log) if g == g2)
     assert all(g != g1 for g, _ in log[first_g2:]), "nothing of drag 1 after drag 2"
     gens = [g for g, _ in log]
     assert gens == sorted(gens)
     assert log[-1] == (g2, "finished")
 
-    nodes, fixed, target = win.last_solve_input
+    nodes, fixed, target = win.session.last_solve_input
     assert fixed[r1] and fixed[r2]
     st = win.state
-    run = solve(st.surface, nodes, fixed, target_ratio=target, options=st.problem.options)
-    try:
-        while True:
-            next(run)
-    except StopIteration as stop:
-        headless = stop.value
+    headless = run_to_end(solve(st.surface, nodes, fixed, target_ratio=target,
+                                options=st.problem.options))
     assert np.allclose(win.state.nodes, headless.nodes, rtol=0, atol=1e-9 * st.surface.size)
     assert win.undo_stack.count() == 2
 
@@ -230,7 +227,7 @@ def test_opening_a_refused_model_shows_the_error_and_keeps_the_document(
 
     from tests.gui.conftest import MODELS
 
-    pytest.importorskip("core.meshio")
+    pytest.importorskip("isochor.core.meshio")
     teapot = MODELS / "teapot.obj"
     if not teapot.exists():
         pytest.skip(f"{teapot} is not there")
@@ -239,7 +236,7 @@ def test_opening_a_refused_model_shows_the_error_and_keeps_the_document(
     monkeypatch.setattr(QMessageBox, "critical",
                         staticmethod(lambda parent, title, text, *a, **k: shown.append(text)))
     doc, nodes = win.doc, np.array(win.state.nodes)
-    assert win.open_path(teapot) is False
+    assert win.files.open_path(teapot) is False
     assert len(shown) == 1 and "teapot" in shown[0].lower()
     assert "Error" not in shown[0].split(":")[0], "the core's message, not a traceback"
     assert win.doc is doc and np.array_equal(win.state.nodes, nodes)
@@ -249,23 +246,22 @@ def test_opening_a_refused_model_shows_the_error_and_keeps_the_document(
 def test_closing_mid_solve_of_the_armadillo_returns_within_a_second(qtbot, themed_app):
     import time
 
-    from app.document import Document
+    from isochor.app.document import Document
     from tests.gui.conftest import MODELS, open_window
 
-    pytest.importorskip("core.meshio")
+    pytest.importorskip("isochor.core.meshio")
     path = MODELS / "armadillo_loop1_346k.ply"
     if not path.exists():
         pytest.skip(f"{path} is not there")
     win = open_window(qtbot, Document.open(path))
     assert win.state.surface.full.n_faces > 300_000
     wait_idle(qtbot, win)
-    vp = win.viewport
-    vp.set_selection([0])
+    win.doc.select([0])
     node = np.array(win.state.nodes[0])
     win.type_position(0, node[0] - 0.3 * win.state.surface.size)
     assert win.is_solving()
     gen = win.worker.generation
-    qtbot.waitUntil(lambda: any(g == gen for g, _ in win.accepted_log), timeout=60_000)
+    qtbot.waitUntil(lambda: any(g == gen for g, _ in win.session.accepted_log), timeout=60_000)
     assert win.is_solving(), "still solving when the window closes"
     win.undo_stack.setClean()
     t0 = time.perf_counter()

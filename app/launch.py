@@ -1,5 +1,7 @@
 """``run_editor``: start the editor, or take a screenshot of it and exit.
 
+``main`` is the ``isochor-editor`` gui-script.
+
 This module imports only the standard library at import time, so the command line can
 call :func:`run_editor` on a machine without a display (or without Qt) and get one line
 of explanation and a non-zero exit code instead of a Qt abort.
@@ -39,8 +41,8 @@ def _x_display_opens(name: str) -> bool:
     """Try to open the X display with libX11, as Qt would (Qt aborts when it cannot).
 
     When libX11 itself cannot be loaded, say yes and let Qt decide."""
-    import ctypes  # noqa: PLC0415
-    import ctypes.util  # noqa: PLC0415
+    import ctypes
+    import ctypes.util
 
     lib = ctypes.util.find_library("X11")
     try:
@@ -57,11 +59,23 @@ def _x_display_opens(name: str) -> bool:
     return True
 
 
-def run_editor(path: str | None, screenshot: str | None = None) -> int:
+#: seconds a screenshot waits for the solve at most, unless told otherwise
+SCREENSHOT_TIMEOUT = 300.0
+
+
+def main() -> int:
+    """The ``isochor-editor`` gui-script: the editor on the file named, if any."""
+    path = sys.argv[1] if len(sys.argv) > 1 else None
+    return run_editor(path)
+
+
+def run_editor(path: str | None, screenshot: str | None = None,
+               timeout: float | None = None) -> int:
     """Open the editor on ``path`` (a model or scenario; None: the default example).
 
     With ``screenshot``, solve the document's scenario to the end with the normal
-    progressive redraw, save a PNG of the whole window there and return 0.
+    progressive redraw (at most ``timeout`` seconds, default :data:`SCREENSHOT_TIMEOUT`),
+    save a PNG of the whole window there and return 0.
 
     Returns the process exit code: 0, or 1 with one line on standard error (no display,
     the GUI libraries are missing, or in screenshot mode a file or the solve failed).
@@ -71,24 +85,25 @@ def run_editor(path: str | None, screenshot: str | None = None) -> int:
         print(problem, file=sys.stderr)
         return NO_DISPLAY
     try:
-        import pyvistaqt  # noqa: F401, PLC0415
-        from PySide6.QtWidgets import QApplication  # noqa: PLC0415
+        import pyvistaqt  # noqa: F401 (the editor cannot start without it)
+        from PySide6.QtWidgets import QApplication
     except ImportError as exc:
         print(f"isochor: the editor needs PySide6 and pyvistaqt ({exc}); "
               "use `isochor solve SCENARIO` to solve without a window", file=sys.stderr)
         return FAILED
 
-    from app import style  # noqa: PLC0415
-    from app.document import Document  # noqa: PLC0415
-    from core.errors import IsochorError  # noqa: PLC0415
+    from ..core.errors import IsochorError
+    from . import style
+    from .document import Document
 
     app = QApplication.instance() or QApplication([sys.argv[0] if sys.argv else "isochor"])
     app.setApplicationName("Isochor")
     app.setOrganizationName("Isochor")
     style.apply_dark_theme(app)
 
-    from app.mainwindow import MainWindow  # noqa: PLC0415 (imports VTK: after the checks)
+    from .mainwindow import MainWindow  # imports VTK: after the checks
 
+    opening_error = None
     if path is None:
         doc = Document.example()
     else:
@@ -98,68 +113,68 @@ def run_editor(path: str | None, screenshot: str | None = None) -> int:
             if screenshot:
                 print(f"isochor: {exc}", file=sys.stderr)
                 return FAILED
-            # Open the window anyway, on the example, and say what went wrong.
+            opening_error = str(exc)  # open the window anyway, on the example, and say why
             doc = Document.example()
-            window = MainWindow(doc)
-            window.show()
-            window._error("Cannot open the file", str(exc))  # noqa: SLF001
-            return _exec(app, window)
-
     window = MainWindow(doc)
     if screenshot:
-        return take_screenshot(app, window, screenshot)
+        limit = SCREENSHOT_TIMEOUT if timeout is None else timeout
+        return take_screenshot(app, window, screenshot, limit)
     window.show()
-    return _exec(app, window)
-
-
-def _exec(app, window) -> int:
+    if opening_error is not None:
+        window.error("Cannot open the file", opening_error)
     code = app.exec()
     window.shutdown()
     return int(code)
 
 
-def take_screenshot(app, window, out: str | Path, timeout: float | None = None) -> int:
-    """Show ``window``, let its solve run to the end, save a PNG of it; the exit code."""
-    from PySide6.QtCore import QEventLoop, QTimer  # noqa: PLC0415
+def take_screenshot(app, window, out: str | Path, timeout: float = SCREENSHOT_TIMEOUT) -> int:
+    """Show ``window``, let its solve run to the end, save a PNG of it; the exit code.
+
+    The picture is taken when the session is idle (the solve ended, or there was nothing to
+    solve) and its last frame is drawn, or after ``timeout`` seconds, whichever comes first.
+    A solve that failed or did not end in time exits 1 (the picture is still written).
+    """
+    from PySide6.QtCore import QEventLoop, QTimer
 
     window.headless_errors = True
     # A local loop, not app.exec()/app.quit(): quitting the application would make every
     # later event loop in this process return at once (it matters to tests).
     loop = QEventLoop()
     window.resize(1400, 880)
-    window.show()
-    result = {"code": OK}
+    outcome = {"code": OK, "shot": False}
 
-    def shoot():
-        if result.get("shot"):
+    def shoot(code: int = OK) -> None:
+        if outcome["shot"]:
             return
-        result["shot"] = True
+        outcome["shot"] = True
+        outcome["code"] = code
         try:
-            window._on_frame()  # noqa: SLF001 (draw the final nodes now)
+            window.session.flush()  # draw the final nodes now
             app.processEvents()
             save_window_png(window, out)
         except OSError as exc:
             print(f"isochor: cannot write {out}: {exc}", file=sys.stderr)
-            result["code"] = FAILED
+            outcome["code"] = FAILED
         window.undo_stack.setClean()
         window.close()
         loop.quit()
 
-    def done(_gen, ok):
-        if not ok and window.last_result is None:
-            result["code"] = FAILED
-        QTimer.singleShot(250, shoot)
+    def idle() -> None:
+        failed = window.state.result is not None and not window.state.result.converged
+        QTimer.singleShot(250, lambda: shoot(FAILED if failed else OK))
 
-    if window.is_solving():
-        window.solveDone.connect(done)
-    else:
-        QTimer.singleShot(400, shoot)
-    if timeout is not None:
-        QTimer.singleShot(int(timeout * 1000), shoot)
-    if not result.get("shot"):
-        loop.exec()
+    def too_late() -> None:
+        if not outcome["shot"]:
+            print(f"isochor: the solve did not end within {timeout:g} s; the picture shows "
+                  "where it was", file=sys.stderr)
+            shoot(FAILED)
+
+    window.idle.connect(idle)
+    QTimer.singleShot(int(timeout * 1000), too_late)
+    window.show()
+    loop.exec()
     window.shutdown()
-    return result["code"]
+    return outcome["code"]
 
 
 def save_window_png(window, out: str | Path) -> None:

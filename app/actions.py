@@ -1,0 +1,152 @@
+"""The window's actions, menus and toolbar.
+
+Every command the user can give is one ``QAction`` on the window (so its shortcut works while
+the menus are closed); menus, the toolbar, the context menu and the panel's buttons share
+them. Built once by :func:`build` for a :class:`~isochor.app.mainwindow.MainWindow`.
+"""
+
+from __future__ import annotations
+
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtWidgets import QToolBar
+
+from ..core.examples import EXAMPLES
+
+#: (name, shortcut) of the standard views
+VIEWS = (("home", "Home"), ("front", "1"), ("back", "Ctrl+1"), ("right", "3"),
+         ("left", "Ctrl+3"), ("top", "7"), ("bottom", "Ctrl+7"))
+
+
+def _action(win, text, slot=None, shortcut=None, checkable=False, checked=False,
+            tip=None) -> QAction:
+    a = QAction(text, win)
+    if shortcut is not None:
+        a.setShortcuts(shortcut if isinstance(shortcut, list) else [shortcut])
+    if checkable:
+        a.setCheckable(True)
+        a.setChecked(checked)
+    if tip:
+        a.setToolTip(tip)
+        a.setStatusTip(tip)
+    if slot is not None:
+        (a.toggled if checkable else a.triggered).connect(slot)
+    win.addAction(a)  # shortcuts work while the menus are closed
+    return a
+
+
+def build(win) -> None:
+    """Create the actions as ``win.act_*``, then the menus and the toolbar."""
+    _build_actions(win)
+    _build_menus(win)
+    _build_toolbar(win)
+
+
+def _build_actions(win) -> None:
+    def A(*args, **kwargs):  # noqa: N802 (reads like the constructor it wraps)
+        return _action(win, *args, **kwargs)
+
+    K = QKeySequence  # noqa: N806
+    s, vp = win.session, win.viewport
+    win.act_open = A("&Open…", win.files.open_dialog, K.StandardKey.Open,
+                     tip="Open a model (OBJ, PLY, STL, OFF) or a scenario (.json)")
+    win.act_save = A("&Save Scenario", win.files.save, K.StandardKey.Save)
+    win.act_save_as = A("Save Scenario &As…", win.files.save_as, K("Ctrl+Shift+S"))
+    win.act_export = A("&Export Deformed Mesh…", win.files.export_dialog, K("Ctrl+E"),
+                       tip="Write the deformed full-resolution mesh (OBJ, PLY, STL)")
+    win.act_quit = A("&Quit", win.close, K.StandardKey.Quit)
+    win.act_undo = s.undo_stack.createUndoAction(win, "&Undo")
+    win.act_undo.setShortcuts([K("Ctrl+Z")])
+    win.act_redo = s.undo_stack.createRedoAction(win, "&Redo")
+    win.act_redo.setShortcuts([K("Ctrl+Shift+Z"), K("Ctrl+Y")])
+    win.addAction(win.act_undo)
+    win.addAction(win.act_redo)
+    win.act_select_all = A("Select &All Nodes", lambda: win.doc.select_all(), K("Ctrl+A"))
+    win.act_pin = A("Toggle &Pin", win.toggle_pin, K("P"),
+                    tip="Pin the selected nodes, or unpin them if all are fixed")
+    win.act_pin_all = A("Pin All", lambda: win.set_pins(None, True))
+    win.act_unpin_all = A("Unpin All", lambda: win.set_pins(None, False))
+    win.act_reset = A("Reset Nodes", lambda: s.commit(win.doc.edit_reset()),
+                      tip="Every node back to rest, no pins")
+    win.act_box = A("&Box Select", lambda on: setattr(vp, "box_mode", bool(on)), K("B"),
+                    checkable=True, tip="Drag a box to select nodes (Shift-drag does it any time)")
+    win.act_preserve = A("Preserve &Volume", s.set_preserve, K("V"), checkable=True,
+                         checked=True, tip="Off: plain FFD, the nodes stay where you put them")
+    win.act_live = A("&Live Solve", lambda on: setattr(s, "live", bool(on)), K("L"),
+                     checkable=True, tip="Solve continuously while a node is dragged")
+    win.act_solve = A("&Solve Again", win.solve_again, K("Ctrl+R"))
+    win.act_stop = A("S&top Solve", s.stop_solve, K("Ctrl+."))
+    win.act_frame = A("&Frame Model", vp.frame, K("F"))
+    win.act_views = {
+        name: A(f"{name.title()} View", lambda _=False, n=name: vp.standard_view(n), K(key))
+        for name, key in VIEWS
+    }
+    win.act_lattice = A("Show &Lattice", win.display_changed, checkable=True, checked=True)
+    win.act_diag = A("Show Diagonal Springs", win.display_changed, checkable=True)
+    win.act_ghost = A("Show &Ghost of the Original", win.display_changed, checkable=True)
+    win.act_smooth = A("&Smooth Shading", win.display_changed, checkable=True, checked=True)
+    win.act_help = A("&Controls", win.show_controls, K("F1"))
+    win.act_about = A("&About Isochor", win.show_about)
+
+
+def _build_menus(win) -> None:
+    from .. import assets
+
+    mb = win.menuBar()
+    m = mb.addMenu("&File")
+    m.addAction(win.act_open)
+    ex = m.addMenu("Open &Example")
+    files = assets.example_files()
+    for name, text in EXAMPLES.items():
+        ex.addAction(text, lambda _=False, p=files[name]: win.files.open_example(p))
+    ex.addSeparator()
+    for name, path in assets.model_files().items():
+        ex.addAction(f"The {name} as a mesh file ({path.name})",
+                     lambda _=False, p=path: win.files.open_example(p))
+    m.addSeparator()
+    for a in (win.act_save, win.act_save_as, win.act_export):
+        m.addAction(a)
+    m.addSeparator()
+    m.addAction(win.act_quit)
+    m = mb.addMenu("&Edit")
+    for a in (win.act_undo, win.act_redo, None, win.act_select_all, win.act_box, None,
+              win.act_pin, win.act_pin_all, win.act_unpin_all, win.act_reset):
+        m.addSeparator() if a is None else m.addAction(a)
+    m = mb.addMenu("&Solve")
+    for a in (win.act_preserve, win.act_live, win.act_solve, win.act_stop):
+        m.addAction(a)
+    m = mb.addMenu("&View")
+    m.addAction(win.act_frame)
+    for a in win.act_views.values():
+        m.addAction(a)
+    m.addSeparator()
+    for a in (win.act_lattice, win.act_diag, win.act_ghost, win.act_smooth):
+        m.addAction(a)
+    m.addSeparator()
+    m.addAction(win.inspector_dock.toggleViewAction())
+    m.addAction(win.plot_dock.toggleViewAction())
+    m = mb.addMenu("&Help")
+    m.addAction(win.act_help)
+    m.addAction(win.act_about)
+
+
+def _build_toolbar(win) -> None:
+    tb = QToolBar("Main", win)
+    tb.setObjectName("main-toolbar")
+    tb.setMovable(False)
+    tb.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+    win.addToolBar(tb)
+    for action, text in ((win.act_open, "Open"), (win.act_save, "Save"),
+                         (win.act_export, "Export"), (win.act_undo, "Undo"),
+                         (win.act_redo, "Redo"), (win.act_box, "Box select"),
+                         (win.act_pin, "Pin"), (win.act_preserve, "Preserve volume"),
+                         (win.act_live, "Live"), (win.act_frame, "Frame")):
+        action.setIconText(text)
+    for a in (win.act_open, win.act_save, win.act_export, None, win.act_undo, win.act_redo,
+              None, win.act_box, win.act_pin, None, win.act_preserve, win.act_live, None,
+              win.act_frame):
+        tb.addSeparator() if a is None else tb.addAction(a)
+    for name in ("home", "front", "right", "top"):
+        a = win.act_views[name]
+        a.setIconText(name.title())
+        tb.addAction(a)

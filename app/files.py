@@ -1,0 +1,136 @@
+"""The window's file commands: open, open an example, save, save as, export, and the
+unsaved-changes prompt. A file that cannot be read or written is shown in a dialog and the
+current document is kept.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import QApplication, QFileDialog, QMessageBox
+
+from ..core.errors import IsochorError
+from ..core.formats import READ_FORMATS, SCENARIO_SUFFIXES, WRITE_FORMATS
+from .document import Document
+
+
+def _patterns(suffixes) -> str:
+    return " ".join(f"*{s}" for s in suffixes)
+
+
+OPEN_FILTER = (f"Models and scenarios ({_patterns([*READ_FORMATS, *SCENARIO_SUFFIXES])});;"
+               f"Models ({_patterns(READ_FORMATS)});;Scenarios ({_patterns(SCENARIO_SUFFIXES)});;"
+               "All files (*)")
+#: export filter -> suffix
+EXPORT_FILTERS = {"Wavefront OBJ (*.obj)": ".obj", "Stanford PLY (*.ply)": ".ply",
+                  "STL (*.stl)": ".stl"}
+assert set(EXPORT_FILTERS.values()) == set(WRITE_FORMATS)
+
+
+class FileCommands:
+    """The file menu of one window."""
+
+    def __init__(self, window) -> None:
+        self.win = window
+
+    @property
+    def doc(self) -> Document:
+        return self.win.session.document
+
+    def _dialog_dir(self) -> str:
+        return str(self.doc.path.parent) if self.doc.path is not None else os.getcwd()
+
+    def confirm_discard(self) -> bool:
+        """True when there are no unsaved changes or the user lets them go."""
+        if self.win.session.undo_stack.isClean():
+            return True
+        buttons = QMessageBox.StandardButton
+        answer = QMessageBox.question(
+            self.win, "Unsaved changes", f"Save the changes to {self.doc.title} before closing it?",
+            buttons.Save | buttons.Discard | buttons.Cancel, buttons.Save)
+        if answer == buttons.Save:
+            return self.save()
+        return answer == buttons.Discard
+
+    def open_dialog(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self.win, "Open a model or a scenario",
+                                              self._dialog_dir(), OPEN_FILTER)
+        if path:
+            self.open_path(path)
+
+    def open_path(self, path: str | Path, *, template: bool = False) -> bool:
+        """Open a model or scenario; on error show it and keep the current document."""
+        if not self.confirm_discard():
+            return False
+        win = self.win
+        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        win.statusBar().showMessage(f"Opening {Path(path).name}…")
+        QApplication.processEvents()
+        try:
+            doc = Document.open(path, template=template)
+        except IsochorError as exc:
+            return self._open_failed(str(exc))
+        except Exception as exc:  # noqa: BLE001 (a loader bug must not take the document)
+            return self._open_failed(f"{Path(path).name}: {type(exc).__name__}: {exc}")
+        QApplication.restoreOverrideCursor()
+        win.statusBar().clearMessage()
+        win.session.load(doc)
+        return True
+
+    def _open_failed(self, message: str) -> bool:
+        QApplication.restoreOverrideCursor()
+        self.win.statusBar().clearMessage()
+        self.win.error("Cannot open the file", message)
+        return False
+
+    def open_example(self, path: Path) -> bool:
+        """A shipped example: opened as a new document, so Save asks where to write."""
+        return self.open_path(path, template=True)
+
+    def save(self) -> bool:
+        if self.doc.path is None:
+            return self.save_as()
+        return self.save_to(self.doc.path)
+
+    def save_as(self) -> bool:
+        start = str(self.doc.path) if self.doc.path else os.path.join(os.getcwd(),
+                                                                       "scenario.json")
+        path, _ = QFileDialog.getSaveFileName(self.win, "Save scenario", start,
+                                              "Scenarios (*.json)")
+        if not path:
+            return False
+        if not path.lower().endswith(".json"):
+            path += ".json"
+        return self.save_to(Path(path))
+
+    def save_to(self, path: Path) -> bool:
+        try:
+            self.doc.save(path)
+        except (IsochorError, OSError) as exc:
+            self.win.error("Cannot save the scenario", str(exc))
+            return False
+        self.win.session.undo_stack.setClean()
+        self.win.update_title()
+        self.win.statusBar().showMessage(f"Saved {path}", 4000)
+        return True
+
+    def export_dialog(self) -> None:
+        base = Path(self.doc.title).stem or "deformed"
+        path, chosen = QFileDialog.getSaveFileName(
+            self.win, "Export the deformed mesh",
+            os.path.join(self._dialog_dir(), f"{base}-deformed.obj"), ";;".join(EXPORT_FILTERS))
+        if path:
+            if not Path(path).suffix:
+                path += EXPORT_FILTERS.get(chosen, ".obj")
+            self.export(path)
+
+    def export(self, path: str | Path) -> bool:
+        try:
+            self.doc.export(path)
+        except (IsochorError, OSError, ValueError) as exc:
+            self.win.error("Cannot export the mesh", str(exc))
+            return False
+        self.win.statusBar().showMessage(f"Exported {path}", 4000)
+        return True

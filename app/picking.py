@@ -1,0 +1,145 @@
+"""Projection and picking maths for the 3D view: numpy only, tested headless.
+
+The view does not use VTK's pickers: node positions are projected to the screen with the
+camera's composite projection matrix and the nearest node within a radius wins. The same
+projection turns a mouse position back into a world point (at a grabbed node's depth, on an
+axis line, or on a plane), which is how a drag moves nodes under the cursor.
+
+Coordinates: *widget pixels* have x to the right and y down, in logical (device-independent)
+pixels, as Qt's mouse events give them. *Device pixels* (the renderer's) have y up and are
+``devicePixelRatio`` times larger. Depth is the normalised device z (-1 near, 1 far).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: A click within this many pixels of a node's centre picks it.
+PICK_RADIUS = 12.0
+#: Among nodes about equally near the cursor (within this many pixels), the front one wins.
+PICK_TIE = 2.0
+
+
+@dataclass(frozen=True)
+class Projection:
+    """World to widget pixels for one camera and window size.
+
+    Attributes
+    ----------
+    matrix : (4, 4) world -> clip coordinates (the camera's composite projection)
+    viewport : (x0, y0, width, height) of the renderer in device pixels, y up
+    height : the widget's height in logical pixels
+    dpr : device pixels per logical pixel
+    """
+
+    matrix: np.ndarray
+    viewport: tuple[float, float, float, float]
+    height: float
+    dpr: float = 1.0
+
+    def project(self, points) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Screen positions of world ``points``.
+
+        Returns
+        -------
+        xy : (p, 2) widget pixels, y down
+        depth : (p,) normalised device z
+        visible : (p,) bool, in front of the camera
+        """
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        clip = np.c_[pts, np.ones(len(pts))] @ np.asarray(self.matrix).T
+        w = clip[:, 3]
+        visible = w > 1e-12
+        ndc = clip[:, :3] / np.where(visible, w, 1.0)[:, None]
+        x0, y0, vw, vh = self.viewport
+        dx = x0 + (ndc[:, 0] + 1) / 2 * vw
+        dy = y0 + (ndc[:, 1] + 1) / 2 * vh
+        xy = np.c_[dx / self.dpr, self.height - 1 - dy / self.dpr]
+        return xy, ndc[:, 2], visible
+
+    def unproject(self, x: float, y: float, depth: float) -> np.ndarray:
+        """(3,) world point under widget pixel (x, y) at normalised device ``depth``."""
+        x0, y0, vw, vh = self.viewport
+        dx, dy = x * self.dpr, (self.height - 1 - y) * self.dpr
+        ndc = np.array([2 * (dx - x0) / vw - 1, 2 * (dy - y0) / vh - 1, depth, 1.0])
+        p = np.linalg.solve(np.asarray(self.matrix), ndc)
+        return p[:3] / p[3]
+
+    def ray(self, x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
+        """(origin on the near plane, unit direction) of the line of sight through (x, y)."""
+        near, far = self.unproject(x, y, -1.0), self.unproject(x, y, 1.0)
+        d = far - near
+        return near, d / np.linalg.norm(d)
+
+
+def nearest(proj: Projection, points, x: float, y: float, radius: float = PICK_RADIUS) -> int:
+    """Row of the point drawn nearest to (x, y) within ``radius`` pixels, or -1.
+
+    Among points about equally near (within :data:`PICK_TIE` pixels of the nearest), the
+    one in front wins, so a click on a node in front of another picks the front one.
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(points) == 0:
+        return -1
+    xy, depth, visible = proj.project(points)
+    d = np.hypot(xy[:, 0] - x, xy[:, 1] - y)
+    d[~visible] = np.inf
+    near = np.flatnonzero(d <= radius)
+    if len(near) == 0:
+        return -1
+    close = near[d[near] <= d[near].min() + PICK_TIE]
+    return int(close[np.argmin(depth[close])])
+
+
+def in_rect(proj: Projection, points, left: float, top: float, right: float,
+            bottom: float) -> np.ndarray:
+    """Rows of the visible points drawn inside the widget rectangle (edges included)."""
+    xy, _, visible = proj.project(points)
+    inside = ((xy[:, 0] >= left) & (xy[:, 0] <= right) & (xy[:, 1] >= top)
+              & (xy[:, 1] <= bottom) & visible)
+    return np.flatnonzero(inside)
+
+
+def drag_delta(proj: Projection, press: tuple[float, float], pos: tuple[float, float],
+               anchor, depth: float, axis=None, plane: bool = False) -> np.ndarray | None:
+    """The world displacement of a drag from widget pixel ``press`` to ``pos``.
+
+    - no ``axis``: in the view plane through the grabbed point (``anchor`` at ``depth``),
+      so the point stays under the cursor;
+    - ``axis`` (a unit vector) and not ``plane``: along the axis line through ``anchor``,
+      by the point of that line nearest to the line of sight;
+    - ``axis`` and ``plane``: in the plane through ``anchor`` across ``axis``.
+
+    Returns None when the move is not defined (the line of sight runs along the axis line,
+    or parallel to the plane): keep the previous displacement then.
+    """
+    anchor = np.asarray(anchor, dtype=np.float64)
+    if axis is None:
+        return proj.unproject(*pos, depth) - proj.unproject(*press, depth)
+    axis = np.asarray(axis, dtype=np.float64)
+    if plane:
+        a, b = _plane_hit(proj, press, anchor, axis), _plane_hit(proj, pos, anchor, axis)
+        return None if a is None or b is None else b - a
+    ta, tb = _line_parameter(proj, press, anchor, axis), _line_parameter(proj, pos, anchor, axis)
+    return None if ta is None or tb is None else (tb - ta) * axis
+
+
+def _plane_hit(proj, p, anchor, normal) -> np.ndarray | None:
+    o, d = proj.ray(*p)
+    den = d @ normal
+    if abs(den) < 1e-6:
+        return None
+    return o + ((anchor - o) @ normal / den) * d
+
+
+def _line_parameter(proj, p, anchor, axis) -> float | None:
+    """Parameter t of the point ``anchor + t axis`` nearest to the line of sight at ``p``."""
+    o, d = proj.ray(*p)
+    w0 = anchor - o
+    b = axis @ d
+    den = 1 - b * b
+    if den < 1e-6:
+        return None
+    return float((b * (d @ w0) - (axis @ w0)) / den)

@@ -1,0 +1,211 @@
+"""The actors of the 3D view: the deformed model, its ghost, the lattice, the selection, the
+axis guide. GUI thread only.
+
+:class:`Scene` adds its actors to a pyvista plotter once per model or lattice
+(:meth:`Scene.build`) and afterwards only updates their points in place
+(``poly.points[:] = ...``): a frame never adds or removes an actor.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyvista as pv
+import scipy.sparse as sp
+
+from ..core.volume import signed_volume
+from . import style
+
+NODE_SIZE = 15.0
+SELECTED_SIZE = 22.0
+
+
+class Shading:
+    """Vertex normals of a deforming mesh with a fixed face list.
+
+    The face normals are gathered to the vertices by a sparse incidence matrix built once,
+    so a frame costs a few milliseconds even for a few hundred thousand triangles.
+    """
+
+    def __init__(self, faces: np.ndarray, n_vertices: int) -> None:
+        self.faces = np.ascontiguousarray(faces, dtype=np.int64)
+        f = len(self.faces)
+        self._gather = sp.csr_matrix(
+            (np.ones(3 * f), (self.faces.ravel(), np.repeat(np.arange(f), 3))),
+            shape=(n_vertices, f))
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        """(m, 3) unit vertex normals (zero-area neighbourhoods get (0, 0, 0))."""
+        a, b, c = (points[self.faces[:, k]] for k in range(3))
+        vn = self._gather @ np.cross(b - a, c - a)
+        norm = np.sqrt(np.einsum("ij,ij->i", vn, vn))[:, None]
+        norm[norm == 0] = 1.0
+        return vn / norm
+
+
+def _cells(edges: np.ndarray) -> np.ndarray:
+    """VTK cell array of equal-sized cells: ``[k, i0, .., ik-1, k, ...]``."""
+    edges = np.asarray(edges, dtype=np.int64)
+    return np.hstack([np.full((len(edges), 1), edges.shape[1], dtype=np.int64), edges]).ravel()
+
+
+def _rgb(color: str) -> np.ndarray:
+    return np.array(style.hex_to_rgb(color), dtype=np.uint8)
+
+
+class Scene:
+    """The actors of one model in one lattice, on one plotter."""
+
+    def __init__(self, plotter) -> None:
+        self.plotter = plotter
+        self.actors: dict[str, object] = {}
+        self.nodes = np.zeros((0, 3))
+        self.selection = np.zeros(0, dtype=int)
+        self.volume = 0.0  #: signed volume of the model as drawn
+        self.show_lattice = True
+        self.show_diagonals = True
+        self.smooth = True
+
+    @property
+    def built(self) -> bool:
+        return "model" in self.actors
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) lowest and highest corner of the model as drawn."""
+        return np.asarray(self._model.bounds).reshape(3, 2).T
+
+    def build(self, surface, nodes: np.ndarray, pinned, moved) -> None:
+        """Replace every actor for a new model or lattice (not called per frame)."""
+        p = self.plotter
+        for actor in self.actors.values():
+            p.remove_actor(actor, render=False)
+        self.actors.clear()
+        full = surface.full
+        faces = np.asarray(full.faces)
+        self.nodes = np.array(nodes, dtype=np.float64)
+        self.selection = np.zeros(0, dtype=int)
+
+        ghost = pv.PolyData(np.array(full.vertices), _cells(faces))
+        self.actors["ghost"] = p.add_mesh(
+            ghost, color=style.GHOST, opacity=0.28, show_scalar_bar=False, render=False,
+            pickable=False, name="ghost")
+        self.actors["ghost"].SetVisibility(False)
+
+        points = surface.deform(self.nodes)
+        self._shading = Shading(faces, len(points))
+        self._faces = faces
+        model = pv.PolyData(points, _cells(faces))
+        model.point_data["Normals"] = self._shading(points)
+        model.point_data.active_normals_name = "Normals"
+        self.volume = signed_volume(points, faces)
+        self._model = model
+        self.actors["model"] = p.add_mesh(
+            model, color=style.MODEL, smooth_shading=False, specular=0.25, specular_power=20,
+            diffuse=0.85, ambient=0.12, show_scalar_bar=False, render=False, name="model")
+
+        edges = np.asarray(surface.springs.edges)
+        lattice = surface.lattice
+        ijk = np.array([lattice.ijk(r) for r in range(lattice.n_nodes)])
+        axis_edge = np.abs(ijk[edges[:, 0]] - ijk[edges[:, 1]]).sum(axis=1) == 1
+        self._springs_axis = pv.PolyData(self.nodes.copy(), lines=_cells(edges[axis_edge]))
+        self._springs_diag = pv.PolyData(self.nodes.copy(), lines=_cells(edges[~axis_edge]))
+        self.actors["diag"] = p.add_mesh(
+            self._springs_diag, color=style.SPRING_DIAGONAL, line_width=1.0, lighting=False,
+            render=False, pickable=False, name="diag")
+        self.actors["axis"] = p.add_mesh(
+            self._springs_axis, color=style.SPRING_AXIS, line_width=2.0, lighting=False,
+            render=False, pickable=False, name="axis")
+
+        self._nodes_poly = pv.PolyData(self.nodes.copy())
+        self._nodes_poly.point_data["rgb"] = np.zeros((len(self.nodes), 3), dtype=np.uint8)
+        self.actors["nodes"] = p.add_mesh(
+            self._nodes_poly, scalars="rgb", rgb=True, render_points_as_spheres=True,
+            point_size=NODE_SIZE, show_scalar_bar=False, render=False, pickable=False,
+            name="nodes")
+        self._sel_poly = pv.PolyData(np.zeros((1, 3)))
+        self.actors["selected"] = p.add_mesh(
+            self._sel_poly, color=style.SELECTED, render_points_as_spheres=True,
+            point_size=SELECTED_SIZE, render=False, pickable=False, name="selected")
+        self.actors["selected"].SetVisibility(False)
+        self._guide = pv.Line((0, 0, 0), (1, 0, 0))
+        self.actors["guide"] = p.add_mesh(
+            self._guide, color=style.GUIDE, line_width=2.5, lighting=False, render=False,
+            pickable=False, name="guide")
+        self.actors["guide"].SetVisibility(False)
+
+        self.set_flags(pinned, moved)
+        self.set_smooth(self.smooth)
+        self._apply_visibility()
+
+    def set_frame(self, nodes: np.ndarray, points: np.ndarray | None) -> None:
+        """Move the lattice (and the model, if ``points`` is given) to new positions."""
+        self.nodes = np.array(nodes, dtype=np.float64)
+        self._nodes_poly.points[:] = self.nodes
+        self._springs_axis.points[:] = self.nodes
+        self._springs_diag.points[:] = self.nodes
+        if points is not None:
+            self._model.points[:] = points
+            self.volume = signed_volume(points, self._faces)
+            if self.smooth:
+                self._model.point_data["Normals"][:] = self._shading(points)
+        self._update_selection()
+
+    def set_flags(self, pinned: np.ndarray, moved: np.ndarray) -> None:
+        """Colour the nodes by role: free, pinned, moved."""
+        rgb = np.empty((len(pinned), 3), dtype=np.uint8)
+        rgb[:] = _rgb(style.FREE)
+        rgb[np.asarray(pinned, bool)] = _rgb(style.PINNED)
+        rgb[np.asarray(moved, bool)] = _rgb(style.MOVED)
+        self._nodes_poly.point_data["rgb"][:] = rgb
+
+    def set_selection(self, rows) -> None:
+        self.selection = np.asarray(rows, dtype=int)
+        self._update_selection()
+
+    def set_ghost(self, on: bool) -> None:
+        self.actors["ghost"].SetVisibility(bool(on))
+
+    def set_smooth(self, on: bool) -> None:
+        self.smooth = bool(on)
+        model = self._model
+        if on:
+            model.point_data["Normals"] = self._shading(np.asarray(model.points))
+            model.point_data.active_normals_name = "Normals"
+        else:
+            model.GetPointData().SetNormals(None)
+        model.Modified()
+
+    def set_lattice_visible(self, on: bool, diagonals: bool | None = None) -> None:
+        self.show_lattice = bool(on)
+        if diagonals is not None:
+            self.show_diagonals = bool(diagonals)
+        self._apply_visibility()
+
+    def set_guide(self, ends: np.ndarray | None) -> None:
+        """Show the axis-lock guide line between ``ends`` (2, 3), or hide it (None)."""
+        actor = self.actors.get("guide")
+        if actor is None:
+            return
+        if ends is not None:
+            self._guide.points[:] = ends
+        actor.SetVisibility(ends is not None)
+
+    def _apply_visibility(self) -> None:
+        self.actors["nodes"].SetVisibility(self.show_lattice)
+        self.actors["axis"].SetVisibility(self.show_lattice)
+        self.actors["diag"].SetVisibility(self.show_lattice and self.show_diagonals)
+        self._update_selection()
+
+    def _update_selection(self) -> None:
+        actor = self.actors.get("selected")
+        if actor is None:
+            return
+        rows = self.selection[self.selection < len(self.nodes)]
+        if len(rows) == 0 or not self.show_lattice:
+            actor.SetVisibility(False)
+            return
+        pts = self.nodes[rows]
+        if self._sel_poly.n_points == len(pts):
+            self._sel_poly.points[:] = pts
+        else:
+            self._sel_poly.copy_from(pv.PolyData(pts))
+        actor.SetVisibility(True)

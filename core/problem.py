@@ -1,0 +1,79 @@
+"""From a scenario to a solvable problem: load the model's level pyramid, fit the lattice,
+apply the moves and pins.
+
+The scenario document (:mod:`isochor.core.scenario`) knows nothing of meshes; this module
+brings the document, the model files (:mod:`isochor.core.meshio`), the level pyramid
+(:mod:`isochor.core.pyramid`), the built-in shapes and the embedded surface together.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .lattice import Lattice
+from .mesh import TriMesh
+from .meshio import load_mesh
+from .multilevel import EmbeddedSurface
+from .pyramid import build_pyramid
+from .scenario import Scenario
+from .shapes import builtin_levels
+from .solver import SolverOptions
+
+
+@dataclass
+class Problem:
+    """A scenario made ready to solve: the embedded surface, start nodes and pins."""
+
+    scenario: Scenario
+    surface: EmbeddedSurface
+    nodes: np.ndarray  #: (n, 3) start positions: rest lattice with the moves applied
+    fixed: np.ndarray  #: (n,) bool: moved or pinned
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def options(self) -> SolverOptions:
+        return SolverOptions(tol_volume=self.scenario.tol_volume,
+                             tol_nodes=self.scenario.tol_nodes)
+
+
+#: ``path -> (levels coarse to fine, warnings)``: how a model file becomes a pyramid.
+LevelLoader = Callable[[Path], tuple[list[TriMesh], list[str]]]
+
+
+def load_levels(path: str | Path) -> tuple[list[TriMesh], list[str]]:
+    """The level pyramid of a model file (coarse to fine, the last is the full mesh) and
+    the warnings of loading it: the default :data:`LevelLoader`."""
+    loaded = load_mesh(path)
+    return build_pyramid(loaded.mesh), list(loaded.warnings)
+
+
+def model_levels(scenario: Scenario, loader: LevelLoader | None = None):
+    """The level pyramid and load warnings of the scenario's model."""
+    if "builtin" in scenario.model:
+        params = {k: v for k, v in scenario.model.items() if k != "builtin"}
+        return builtin_levels(scenario.model["builtin"], **params), []
+    return (loader or load_levels)(scenario.model_path())
+
+
+def build(scenario: Scenario, loader: LevelLoader | None = None,
+          levels: list[TriMesh] | None = None, warnings: list[str] | None = None) -> Problem:
+    """Load the model (unless ``levels`` are given), fit the lattice, apply moves and pins."""
+    if levels is None:
+        levels, warnings = model_levels(scenario, loader)
+    if scenario.frame is None:
+        lattice = Lattice.around(levels[-1].vertices, scenario.lattice_nodes, scenario.padding)
+    else:
+        lattice = Lattice(scenario.lattice_nodes, scenario.frame[0], scenario.frame[1])
+    nodes = lattice.rest_nodes.copy()
+    fixed = np.zeros(lattice.n_nodes, dtype=bool)
+    for mv in scenario.moves:
+        r = lattice.index(*mv.node)
+        nodes[r] = (nodes[r] + mv.by) if mv.by is not None else mv.to
+        fixed[r] = True
+    for p in scenario.pins:
+        fixed[lattice.index(*p)] = True
+    return Problem(scenario, EmbeddedSurface(lattice, levels), nodes, fixed, list(warnings or []))
