@@ -14,12 +14,20 @@ from PySide6.QtWidgets import QToolBar
 from ..core.examples import EXAMPLES
 
 #: (name, shortcut) of the standard views
-VIEWS = (("home", "Home"), ("front", "1"), ("back", "Ctrl+1"), ("right", "3"),
-         ("left", "Ctrl+3"), ("top", "7"), ("bottom", "Ctrl+7"))
+VIEWS = (
+    ("home", "Home"),
+    ("front", "1"),
+    ("back", "Ctrl+1"),
+    ("right", "3"),
+    ("left", "Ctrl+3"),
+    ("top", "7"),
+    ("bottom", "Ctrl+7"),
+)
 
 
-def _action(win, text, slot=None, shortcut=None, checkable=False, checked=False,
-            tip=None) -> QAction:
+def _action(
+    win, text, slot=None, shortcut=None, checkable=False, checked=False, tip=None
+) -> QAction:
     a = QAction(text, win)
     if shortcut is not None:
         a.setShortcuts(shortcut if isinstance(shortcut, list) else [shortcut])
@@ -43,17 +51,25 @@ def build(win) -> None:
 
 
 def _build_actions(win) -> None:
-    def A(*args, **kwargs):  # noqa: N802 (reads like the constructor it wraps)
+    def A(*args, **kwargs):
         return _action(win, *args, **kwargs)
 
     K = QKeySequence  # noqa: N806
     s, vp = win.session, win.viewport
-    win.act_open = A("&Open…", win.files.open_dialog, K.StandardKey.Open,
-                     tip="Open a model (OBJ, PLY, STL, OFF) or a scenario (.json)")
+    win.act_open = A(
+        "&Open…",
+        win.files.open_dialog,
+        K.StandardKey.Open,
+        tip="Open a model (OBJ, PLY, STL, OFF) or a scenario (.json)",
+    )
     win.act_save = A("&Save Scenario", win.files.save, K.StandardKey.Save)
     win.act_save_as = A("Save Scenario &As…", win.files.save_as, K("Ctrl+Shift+S"))
-    win.act_export = A("&Export Deformed Mesh…", win.files.export_dialog, K("Ctrl+E"),
-                       tip="Write the deformed full-resolution mesh (OBJ, PLY, STL)")
+    win.act_export = A(
+        "&Export Deformed Mesh…",
+        win.files.export_dialog,
+        K("Ctrl+E"),
+        tip="Write the deformed full-resolution mesh (OBJ, PLY, STL)",
+    )
     win.act_quit = A("&Quit", win.close, K.StandardKey.Quit)
     win.act_undo = s.undo_stack.createUndoAction(win, "&Undo")
     win.act_undo.setShortcuts([K("Ctrl+Z")])
@@ -62,18 +78,41 @@ def _build_actions(win) -> None:
     win.addAction(win.act_undo)
     win.addAction(win.act_redo)
     win.act_select_all = A("Select &All Nodes", lambda: win.doc.select_all(), K("Ctrl+A"))
-    win.act_pin = A("Toggle &Pin", win.toggle_pin, K("P"),
-                    tip="Pin the selected nodes, or unpin them if all are fixed")
+    win.act_pin = A(
+        "Toggle &Pin",
+        win.toggle_pin,
+        K("P"),
+        tip="Pin the selected nodes, or unpin them if all are fixed",
+    )
     win.act_pin_all = A("Pin All", lambda: win.set_pins(None, True))
     win.act_unpin_all = A("Unpin All", lambda: win.set_pins(None, False))
-    win.act_reset = A("Reset Nodes", lambda: s.commit(win.doc.edit_reset()),
-                      tip="Every node back to rest, no pins")
-    win.act_box = A("&Box Select", lambda on: setattr(vp, "box_mode", bool(on)), K("B"),
-                    checkable=True, tip="Drag a box to select nodes (Shift-drag does it any time)")
-    win.act_preserve = A("Preserve &Volume", s.set_preserve, K("V"), checkable=True,
-                         checked=True, tip="Off: plain FFD, the nodes stay where you put them")
-    win.act_live = A("&Live Solve", lambda on: setattr(s, "live", bool(on)), K("L"),
-                     checkable=True, tip="Solve continuously while a node is dragged")
+    win.act_reset = A(
+        "Reset Nodes",
+        lambda: s.commit(win.doc.edit_reset()),
+        tip="Every node back to rest, no pins",
+    )
+    win.act_box = A(
+        "&Box Select",
+        lambda on: setattr(vp, "box_mode", bool(on)),
+        K("B"),
+        checkable=True,
+        tip="Drag a box to select nodes (Shift-drag does it any time)",
+    )
+    win.act_preserve = A(
+        "Preserve &Volume",
+        s.set_preserve,
+        K("V"),
+        checkable=True,
+        checked=True,
+        tip="Off: plain FFD, the nodes stay where you put them",
+    )
+    win.act_live = A(
+        "&Live Solve",
+        lambda on: setattr(s, "live", bool(on)),
+        K("L"),
+        checkable=True,
+        tip="Solve continuously while a node is dragged",
+    )
     win.act_solve = A("&Solve Again", win.solve_again, K("Ctrl+R"))
     win.act_stop = A("S&top Solve", s.stop_solve, K("Ctrl+."))
     win.act_frame = A("&Frame Model", vp.frame, K("F"))
@@ -101,16 +140,28 @@ def _build_menus(win) -> None:
         ex.addAction(text, lambda _=False, p=files[name]: win.files.open_example(p))
     ex.addSeparator()
     for name, path in assets.model_files().items():
-        ex.addAction(f"The {name} as a mesh file ({path.name})",
-                     lambda _=False, p=path: win.files.open_example(p))
+        ex.addAction(
+            f"The {name} as a mesh file ({path.name})",
+            lambda _=False, p=path: win.files.open_example(p),
+        )
     m.addSeparator()
     for a in (win.act_save, win.act_save_as, win.act_export):
         m.addAction(a)
     m.addSeparator()
     m.addAction(win.act_quit)
     m = mb.addMenu("&Edit")
-    for a in (win.act_undo, win.act_redo, None, win.act_select_all, win.act_box, None,
-              win.act_pin, win.act_pin_all, win.act_unpin_all, win.act_reset):
+    for a in (
+        win.act_undo,
+        win.act_redo,
+        None,
+        win.act_select_all,
+        win.act_box,
+        None,
+        win.act_pin,
+        win.act_pin_all,
+        win.act_unpin_all,
+        win.act_reset,
+    ):
         m.addSeparator() if a is None else m.addAction(a)
     m = mb.addMenu("&Solve")
     for a in (win.act_preserve, win.act_live, win.act_solve, win.act_stop):
@@ -136,15 +187,35 @@ def _build_toolbar(win) -> None:
     tb.setMovable(False)
     tb.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
     win.addToolBar(tb)
-    for action, text in ((win.act_open, "Open"), (win.act_save, "Save"),
-                         (win.act_export, "Export"), (win.act_undo, "Undo"),
-                         (win.act_redo, "Redo"), (win.act_box, "Box select"),
-                         (win.act_pin, "Pin"), (win.act_preserve, "Preserve volume"),
-                         (win.act_live, "Live"), (win.act_frame, "Frame")):
+    for action, text in (
+        (win.act_open, "Open"),
+        (win.act_save, "Save"),
+        (win.act_export, "Export"),
+        (win.act_undo, "Undo"),
+        (win.act_redo, "Redo"),
+        (win.act_box, "Box select"),
+        (win.act_pin, "Pin"),
+        (win.act_preserve, "Preserve volume"),
+        (win.act_live, "Live"),
+        (win.act_frame, "Frame"),
+    ):
         action.setIconText(text)
-    for a in (win.act_open, win.act_save, win.act_export, None, win.act_undo, win.act_redo,
-              None, win.act_box, win.act_pin, None, win.act_preserve, win.act_live, None,
-              win.act_frame):
+    for a in (
+        win.act_open,
+        win.act_save,
+        win.act_export,
+        None,
+        win.act_undo,
+        win.act_redo,
+        None,
+        win.act_box,
+        win.act_pin,
+        None,
+        win.act_preserve,
+        win.act_live,
+        None,
+        win.act_frame,
+    ):
         tb.addSeparator() if a is None else tb.addAction(a)
     for name in ("home", "front", "right", "top"):
         a = win.act_views[name]

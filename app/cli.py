@@ -28,15 +28,15 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from .. import __version__
+from ..core.errors import IsochorError
 
 # One BLAS thread unless the user says otherwise: the lattice products are small and the
 # solver shares the cores with the window; measured under load, a 125-node basis product
-# took 32 ms with two OpenBLAS threads and 1.4 ms with one.
+# took 32 ms with two OpenBLAS threads and 1.4 ms with one. (Nothing imported above
+# imports numpy, so the setting still counts.)
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
-
-from .. import __version__
-from ..core.errors import IsochorError  # (no numpy yet: the BLAS setting above still counts)
 
 if TYPE_CHECKING:
     from ..core.multilevel import SolveResult
@@ -79,23 +79,34 @@ def _parser() -> argparse.ArgumentParser:
 
     edit = sub.add_parser("edit", help="open a scenario (.json) or a model in the editor")
     edit.add_argument("file", type=Path, help="scenario .json, or an OBJ/PLY/STL/OFF model")
-    edit.add_argument("--screenshot", type=Path, metavar="PNG",
-                      help="solve, render the window to this image and exit")
-    edit.add_argument("--timeout", type=float, default=None, metavar="SECONDS",
-                      help="with --screenshot: take the picture after this long even if the "
-                      "solve has not ended (default 300)")
+    edit.add_argument(
+        "--screenshot",
+        type=Path,
+        metavar="PNG",
+        help="solve, render the window to this image and exit",
+    )
+    edit.add_argument(
+        "--timeout",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="with --screenshot: take the picture after this long even if the "
+        "solve has not ended (default 300)",
+    )
     edit.set_defaults(run=_edit)
 
-    solve = sub.add_parser("solve", help="solve a scenario without a window",
-                           description="Load, solve with the multi-level optimizer, print one "
-                           "row per level, write the deformed full-resolution mesh and a "
-                           "JSON report. Exit status 3: finished without reaching the "
-                           "volume tolerance (outputs written).")
+    solve = sub.add_parser(
+        "solve",
+        help="solve a scenario without a window",
+        description="Load, solve with the multi-level optimizer, print one "
+        "row per level, write the deformed full-resolution mesh and a "
+        "JSON report. Exit status 3: finished without reaching the "
+        "volume tolerance (outputs written).",
+    )
     what = solve.add_mutually_exclusive_group(required=True)
     what.add_argument("scenario", nargs="?", type=Path, help="the scenario .json")
     what.add_argument("--example", metavar="NAME", help="a built-in example (isochor examples)")
-    solve.add_argument("--out", type=Path, metavar="MESH",
-                       help="deformed mesh: .obj, .ply or .stl")
+    solve.add_argument("--out", type=Path, metavar="MESH", help="deformed mesh: .obj, .ply or .stl")
     solve.add_argument("--report", type=Path, metavar="JSON", help="the report (JSON)")
     solve.add_argument("--quiet", "-q", action="store_true", help="no per-level table")
     solve.set_defaults(run=_solve)
@@ -128,12 +139,12 @@ def _examples(args: argparse.Namespace) -> int:
 
 # -- solve --------------------------------------------------------------------------------
 def _solve(args: argparse.Namespace) -> int:
-    from ..core.mesh import TriMesh
-    from ..core.formats import WRITE_FORMATS
-    from ..core.meshio import mesh_bytes
-    from ..core.repair import count_bodies
     from ..core.atomic import atomic_write_bytes
+    from ..core.formats import WRITE_FORMATS
+    from ..core.mesh import TriMesh
+    from ..core.meshio import mesh_bytes
     from ..core.problem import build
+    from ..core.repair import count_bodies
     from ..core.scenario import Scenario
 
     _check_output(args.out, WRITE_FORMATS)
@@ -195,27 +206,39 @@ def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:
     from ..core.multilevel import solve
 
     sc = problem.scenario
-    run = solve(problem.surface, problem.nodes, problem.fixed,
-                target_ratio=sc.target_volume_ratio, options=problem.options)
+    run = solve(
+        problem.surface,
+        problem.nodes,
+        problem.fixed,
+        target_ratio=sc.target_volume_ratio,
+        options=problem.options,
+    )
     if out is not None:
-        print(f"{'level':>5} {'triangles':>10} {'max dX %':>9} {'steps':>6} {'ms':>8} "
-              f"{'|dV|/V0':>9}", file=out, flush=True)
+        print(
+            f"{'level':>5} {'triangles':>10} {'max dX %':>9} {'steps':>6} {'ms':>8} {'|dV|/V0':>9}",
+            file=out,
+            flush=True,
+        )
     last = [0.0]
 
     def row(p) -> None:
         if p.level_done and out is not None:
             change = 100 * p.max_node_change if p.max_node_change is not None else 0.0
-            print(f"{p.level:>5} {p.triangles:>10} {change:>9.3f} {p.step:>6} "
-                  f"{1000 * (p.elapsed - last[0]):>8.1f} {abs(p.rel_volume_error):>9.2e}",
-                  file=out, flush=True)
+            print(
+                f"{p.level:>5} {p.triangles:>10} {change:>9.3f} {p.step:>6} "
+                f"{1000 * (p.elapsed - last[0]):>8.1f} {abs(p.rel_volume_error):>9.2e}",
+                file=out,
+                flush=True,
+            )
         if p.level_done:
             last[0] = p.elapsed
 
     return run_to_end(run, row)
 
 
-def make_report(problem: Problem, result: SolveResult, source: str, time_s: float,
-                bodies: int) -> dict[str, Any]:
+def make_report(
+    problem: Problem, result: SolveResult, source: str, time_s: float, bodies: int
+) -> dict[str, Any]:
     """The JSON report of a solve (volumes on the full-resolution mesh)."""
     sc = problem.scenario
     return {
@@ -234,9 +257,14 @@ def make_report(problem: Problem, result: SolveResult, source: str, time_s: floa
         "message": result.message,
         "terminal_level": result.terminal_level,
         "levels": [
-            {"level": s.level, "triangles": s.triangles, "steps": s.steps, "time_s": s.time_s,
-             "max_node_change": s.max_node_change,
-             "relative_volume_error": s.rel_volume_error}
+            {
+                "level": s.level,
+                "triangles": s.triangles,
+                "steps": s.steps,
+                "time_s": s.time_s,
+                "max_node_change": s.max_node_change,
+                "relative_volume_error": s.rel_volume_error,
+            }
             for s in result.levels
         ],
         "pyramid": [m.n_faces for m in problem.surface.levels],
@@ -252,9 +280,11 @@ def make_report(problem: Problem, result: SolveResult, source: str, time_s: floa
 def _summary(result: SolveResult, args: argparse.Namespace) -> None:
     if args.quiet:
         return
-    print(f"volume {result.volume_original:.6g} -> {result.volume_final:.6g} "
-          f"(target {result.volume_target:.6g}, error {result.rel_volume_error:+.2e}); "
-          f"{result.free_nodes} free nodes; {result.elapsed:.2f} s")
+    print(
+        f"volume {result.volume_original:.6g} -> {result.volume_final:.6g} "
+        f"(target {result.volume_target:.6g}, error {result.rel_volume_error:+.2e}); "
+        f"{result.free_nodes} free nodes; {result.elapsed:.2f} s"
+    )
     for path in (args.out, args.report):
         if path is not None:
             print(f"wrote {path}")

@@ -19,8 +19,7 @@ from .document import Document, StateCell
 class EditCommand(QUndoCommand):
     """Switch the document between two state cells; ``push`` applies the edit."""
 
-    def __init__(self, document: Document, text: str, before: StateCell,
-                 after: StateCell) -> None:
+    def __init__(self, document: Document, text: str, before: StateCell, after: StateCell) -> None:
         super().__init__(text)
         self.document = document
         self.before = before

@@ -212,8 +212,10 @@ class EditorSession(QObject):
         if drag is None:
             return ""
         lock = f" — locked to the {lock}" if lock else ""
-        return (f"Moving {plural(len(drag.rows))}{lock} — X/Y/Z lock an axis, "
-                "Shift+X/Y/Z a plane, Esc cancels")
+        return (
+            f"Moving {plural(len(drag.rows))}{lock} — X/Y/Z lock an axis, "
+            "Shift+X/Y/Z a plane, Esc cancels"
+        )
 
     def _live_active(self) -> bool:
         return self.live and self.document.preserve
@@ -267,8 +269,9 @@ class EditorSession(QObject):
 
     def _begin(self, st, nodes, fixed) -> None:
         self._deferred = False
-        gen = self.worker.start(st.surface, nodes, fixed, target_ratio=st.target_ratio,
-                                options=st.problem.options)
+        gen = self.worker.start(
+            st.surface, nodes, fixed, target_ratio=st.target_ratio, options=st.problem.options
+        )
         self._accept_gen = gen
         if not self._live_preview:
             self.activity = "solving"
@@ -345,10 +348,10 @@ class EditorSession(QObject):
 
     def status(self) -> tuple[str, str, str]:
         """``(chip, tone, sentence)`` for the status bar and the Solve panel."""
-        activity = "solving" if self._deferred and self.document.needs_solve() \
-            else self.activity
-        return describe_status(self.document.state, preserve=self.document.preserve,
-                               activity=activity)
+        activity = "solving" if self._deferred and self.document.needs_solve() else self.activity
+        return describe_status(
+            self.document.state, preserve=self.document.preserve, activity=activity
+        )
 
     # -- frames ------------------------------------------------------------------------------
     def _on_frame(self) -> None:

@@ -33,8 +33,18 @@ from ..core.problem import Problem, build, model_levels
 from ..core.scenario import Move, Scenario
 from .state import DocState, SolveSummary, StateCell, describe_status, initial_state, plural
 
-__all__ = ["Document", "DocState", "DragSession", "Edit", "SolveSummary", "StateCell",
-           "default_lattice_shape", "describe_status", "initial_state", "plural"]
+__all__ = [
+    "Document",
+    "DocState",
+    "DragSession",
+    "Edit",
+    "SolveSummary",
+    "StateCell",
+    "default_lattice_shape",
+    "describe_status",
+    "initial_state",
+    "plural",
+]
 
 
 def default_lattice_shape(mesh: TriMesh) -> tuple[int, int, int]:
@@ -255,7 +265,7 @@ class Document:
     def edit_pins(self, rows, pin: bool) -> Edit | None:
         """Pin (or unpin) ``rows``; None means every node."""
         st = self.state
-        rows = np.arange(st.lattice.n_nodes) if rows is None else np.asarray(rows, dtype=int)
+        rows = np.arange(st.lattice.n_nodes) if rows is None else np.unique(np.asarray(rows, int))
         if len(rows) == 0:
             return None
         changes = (~st.pinned[rows]).any() if pin else st.fixed[rows].any()
@@ -274,10 +284,12 @@ class Document:
 
     def edit_target(self, percent: float) -> Edit | None:
         ratio = float(percent) / 100.0
-        if not ratio > 0 or ratio == self.state.target_ratio:
+        if not (np.isfinite(ratio) and ratio > 0) or ratio == self.state.target_ratio:
             return None
-        return Edit(self.state.edited(nodes=self.base_nodes(), target_ratio=ratio),
-                    f"Target volume {percent:g} %")
+        return Edit(
+            self.state.edited(nodes=self.base_nodes(), target_ratio=ratio),
+            f"Target volume {percent:g} %",
+        )
 
     def edit_reset(self) -> Edit | None:
         """Every node back to rest, nothing pinned (at rest there is nothing to solve)."""
@@ -286,8 +298,12 @@ class Document:
         rest = st.lattice.rest_nodes
         if not (st.pinned.any() or st.moved.any() or not np.array_equal(st.nodes, rest)):
             return None
-        new = st.edited(nodes=rest, pinned=np.zeros(n, bool), moved=np.zeros(n, bool),
-                        solved=st.target_ratio == 1.0)
+        new = st.edited(
+            nodes=rest,
+            pinned=np.zeros(n, bool),
+            moved=np.zeros(n, bool),
+            solved=st.target_ratio == 1.0,
+        )
         return Edit(new, "Reset nodes")
 
     def edit_lattice(self, shape) -> Edit | None:
@@ -308,7 +324,17 @@ class Document:
             problem = build(scenario, levels=list(old.surface.levels), warnings=old.warnings)
             self._problems[_key(problem)] = problem
         ratio = self.state.target_ratio
-        state = replace(initial_state(problem), target_ratio=ratio, solved=ratio == 1.0)
+        n = problem.surface.lattice.n_nodes
+        # at rest: a cached problem may come from the opened scenario, whose moves and pins
+        # name the nodes of the lattice the user has just left
+        state = DocState(
+            problem,
+            problem.surface.lattice.rest_nodes,
+            np.zeros(n, bool),
+            np.zeros(n, bool),
+            ratio,
+            solved=ratio == 1.0,
+        )
         return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape))
 
     # -- the drag --------------------------------------------------------------------------
@@ -335,11 +361,14 @@ class Document:
         """The current state as a scenario: moved nodes as ``to`` moves, pins, target."""
         st = self.state
         lat = st.lattice
-        moves = tuple(Move(lat.ijk(r), to=tuple(float(x) for x in st.nodes[r]))
-                      for r in np.flatnonzero(st.moved))
+        moves = tuple(
+            Move(lat.ijk(r), to=tuple(float(x) for x in st.nodes[r]))
+            for r in np.flatnonzero(st.moved)
+        )
         pins = tuple(lat.ijk(r) for r in np.flatnonzero(st.pinned & ~st.moved))
-        return st.problem.scenario.with_(moves=moves, pins=pins,
-                                         target_volume_ratio=float(st.target_ratio))
+        return st.problem.scenario.with_(
+            moves=moves, pins=pins, target_volume_ratio=float(st.target_ratio)
+        )
 
     def save(self, path: str | Path) -> None:
         path = Path(path)

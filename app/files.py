@@ -20,12 +20,17 @@ def _patterns(suffixes) -> str:
     return " ".join(f"*{s}" for s in suffixes)
 
 
-OPEN_FILTER = (f"Models and scenarios ({_patterns([*READ_FORMATS, *SCENARIO_SUFFIXES])});;"
-               f"Models ({_patterns(READ_FORMATS)});;Scenarios ({_patterns(SCENARIO_SUFFIXES)});;"
-               "All files (*)")
+OPEN_FILTER = (
+    f"Models and scenarios ({_patterns([*READ_FORMATS, *SCENARIO_SUFFIXES])});;"
+    f"Models ({_patterns(READ_FORMATS)});;Scenarios ({_patterns(SCENARIO_SUFFIXES)});;"
+    "All files (*)"
+)
 #: export filter -> suffix
-EXPORT_FILTERS = {"Wavefront OBJ (*.obj)": ".obj", "Stanford PLY (*.ply)": ".ply",
-                  "STL (*.stl)": ".stl"}
+EXPORT_FILTERS = {
+    "Wavefront OBJ (*.obj)": ".obj",
+    "Stanford PLY (*.ply)": ".ply",
+    "STL (*.stl)": ".stl",
+}
 assert set(EXPORT_FILTERS.values()) == set(WRITE_FORMATS)
 
 
@@ -48,15 +53,20 @@ class FileCommands:
             return True
         buttons = QMessageBox.StandardButton
         answer = QMessageBox.question(
-            self.win, "Unsaved changes", f"Save the changes to {self.doc.title} before closing it?",
-            buttons.Save | buttons.Discard | buttons.Cancel, buttons.Save)
+            self.win,
+            "Unsaved changes",
+            f"Save the changes to {self.doc.title} before closing it?",
+            buttons.Save | buttons.Discard | buttons.Cancel,
+            buttons.Save,
+        )
         if answer == buttons.Save:
             return self.save()
         return answer == buttons.Discard
 
     def open_dialog(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self.win, "Open a model or a scenario",
-                                              self._dialog_dir(), OPEN_FILTER)
+        path, _ = QFileDialog.getOpenFileName(
+            self.win, "Open a model or a scenario", self._dialog_dir(), OPEN_FILTER
+        )
         if path:
             self.open_path(path)
 
@@ -72,7 +82,7 @@ class FileCommands:
             doc = Document.open(path, template=template)
         except IsochorError as exc:
             return self._open_failed(str(exc))
-        except Exception as exc:  # noqa: BLE001 (a loader bug must not take the document)
+        except Exception as exc:
             return self._open_failed(f"{Path(path).name}: {type(exc).__name__}: {exc}")
         QApplication.restoreOverrideCursor()
         win.statusBar().clearMessage()
@@ -95,10 +105,10 @@ class FileCommands:
         return self.save_to(self.doc.path)
 
     def save_as(self) -> bool:
-        start = str(self.doc.path) if self.doc.path else os.path.join(os.getcwd(),
-                                                                       "scenario.json")
-        path, _ = QFileDialog.getSaveFileName(self.win, "Save scenario", start,
-                                              "Scenarios (*.json)")
+        start = str(self.doc.path) if self.doc.path else os.path.join(os.getcwd(), "scenario.json")
+        path, _ = QFileDialog.getSaveFileName(
+            self.win, "Save scenario", start, "Scenarios (*.json)"
+        )
         if not path:
             return False
         if not path.lower().endswith(".json"):
@@ -119,8 +129,11 @@ class FileCommands:
     def export_dialog(self) -> None:
         base = Path(self.doc.title).stem or "deformed"
         path, chosen = QFileDialog.getSaveFileName(
-            self.win, "Export the deformed mesh",
-            os.path.join(self._dialog_dir(), f"{base}-deformed.obj"), ";;".join(EXPORT_FILTERS))
+            self.win,
+            "Export the deformed mesh",
+            os.path.join(self._dialog_dir(), f"{base}-deformed.obj"),
+            ";;".join(EXPORT_FILTERS),
+        )
         if path:
             if not Path(path).suffix:
                 path += EXPORT_FILTERS.get(chosen, ".obj")

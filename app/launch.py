@@ -32,8 +32,10 @@ def display_problem() -> str | None:
     if not wayland and not x11:
         return NO_DISPLAY_MESSAGE
     if x11 and not wayland and not _x_display_opens(x11):
-        return (f"isochor: cannot connect to the X display {x11!r}; "
-                "use `isochor solve SCENARIO` to solve without a window")
+        return (
+            f"isochor: cannot connect to the X display {x11!r}; "
+            "use `isochor solve SCENARIO` to solve without a window"
+        )
     return None
 
 
@@ -69,8 +71,9 @@ def main() -> int:
     return run_editor(path)
 
 
-def run_editor(path: str | None, screenshot: str | None = None,
-               timeout: float | None = None) -> int:
+def run_editor(
+    path: str | None, screenshot: str | None = None, timeout: float | None = None
+) -> int:
     """Open the editor on ``path`` (a model or scenario; None: the default example).
 
     With ``screenshot``, solve the document's scenario to the end with the normal
@@ -88,8 +91,11 @@ def run_editor(path: str | None, screenshot: str | None = None,
         import pyvistaqt  # noqa: F401 (the editor cannot start without it)
         from PySide6.QtWidgets import QApplication
     except ImportError as exc:
-        print(f"isochor: the editor needs PySide6 and pyvistaqt ({exc}); "
-              "use `isochor solve SCENARIO` to solve without a window", file=sys.stderr)
+        print(
+            f"isochor: the editor needs PySide6 and pyvistaqt ({exc}); "
+            "use `isochor solve SCENARIO` to solve without a window",
+            file=sys.stderr,
+        )
         return FAILED
 
     from ..core.errors import IsochorError
@@ -165,8 +171,11 @@ def take_screenshot(app, window, out: str | Path, timeout: float = SCREENSHOT_TI
 
     def too_late() -> None:
         if not outcome["shot"]:
-            print(f"isochor: the solve did not end within {timeout:g} s; the picture shows "
-                  "where it was", file=sys.stderr)
+            print(
+                f"isochor: the solve did not end within {timeout:g} s; the picture shows "
+                "where it was",
+                file=sys.stderr,
+            )
             shoot(FAILED)
 
     window.idle.connect(idle)

@@ -55,8 +55,7 @@ class MainWindow(QMainWindow):
         self._closed = False
         self.viewport = Viewport(self)
         self.setCentralWidget(self.viewport)
-        self.session = EditorSession(document if document is not None else Document.example(),
-                                     self)
+        self.session = EditorSession(document if document is not None else Document.example(), self)
         self.files = FileCommands(self)
         self.panel = Panel()
         self.plot = ConvergencePlot()
@@ -104,15 +103,17 @@ class MainWindow(QMainWindow):
         self.plot_dock = QDockWidget("Convergence", self)
         self.plot_dock.setObjectName("convergence")
         self.plot_dock.setWidget(self.plot)
-        self.plot_dock.setFeatures(features.DockWidgetMovable | features.DockWidgetFloatable
-                                   | features.DockWidgetClosable)
+        self.plot_dock.setFeatures(
+            features.DockWidgetMovable | features.DockWidgetFloatable | features.DockWidgetClosable
+        )
         self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, self.plot_dock)
         self.resizeDocks([self.plot_dock], [190], Qt.Orientation.Vertical)
 
     def _build_status(self) -> None:
         sb = self.statusBar()
         self.st_state, self.st_volume, self.st_level, self.st_solver, self.st_time = (
-            QLabel() for _ in range(5))
+            QLabel() for _ in range(5)
+        )
         for w in (self.st_state, self.st_volume, self.st_level, self.st_solver, self.st_time):
             sb.addPermanentWidget(w)
 
@@ -136,9 +137,12 @@ class MainWindow(QMainWindow):
         vp.dragFinished.connect(self._drag_finished)
         vp.dragCanceled.connect(self._drag_canceled)
         vp.lockChanged.connect(lambda text: vp.show_info(s.drag_text(text)))
-        vp.contextMenuRequested.connect(lambda row, pos: self.exec_menu(self.context_menu(row),
-                                                                         pos))
-        vp.fileDropped.connect(lambda path: QTimer.singleShot(0, lambda: self.files.open_path(path)))
+        vp.contextMenuRequested.connect(
+            lambda row, pos: self.exec_menu(self.context_menu(row), pos)
+        )
+        vp.fileDropped.connect(
+            lambda path: QTimer.singleShot(0, lambda: self.files.open_path(path))
+        )
         p.positionEdited.connect(self.type_position)
         p.pinClicked.connect(lambda on: self.set_pins(self.doc.selection, on))
         p.pin_all.clicked.connect(self.act_pin_all.trigger)
@@ -147,17 +151,23 @@ class MainWindow(QMainWindow):
         p.latticeRequested.connect(self.rebuild_lattice)
         p.solve_button.clicked.connect(self.solve_again)
         p.reset_button.clicked.connect(self.act_reset.trigger)
-        for action, box in ((self.act_preserve, p.preserve_box), (self.act_live, p.live_box),
-                            (self.act_lattice, p.lattice_box), (self.act_diag, p.diag_box),
-                            (self.act_ghost, p.ghost_box), (self.act_smooth, p.smooth_box)):
+        for action, box in (
+            (self.act_preserve, p.preserve_box),
+            (self.act_live, p.live_box),
+            (self.act_lattice, p.lattice_box),
+            (self.act_diag, p.diag_box),
+            (self.act_ghost, p.ghost_box),
+            (self.act_smooth, p.smooth_box),
+        ):
             bind(action, box)
 
     # -- session -> widgets --------------------------------------------------------------------
     def _document_loaded(self) -> None:
         st = self.state
         self._rebuild_scene(reset_camera=True)
-        self.plot.reset(st.surface.size, st.problem.scenario.tol_volume,
-                        st.problem.scenario.tol_nodes)
+        self.plot.reset(
+            st.surface.size, st.problem.scenario.tol_volume, st.problem.scenario.tol_nodes
+        )
         self._frame_after_solve = True  # once the opening solve ends, fit it in the view
         self.update_title()
         for w in st.problem.warnings:
@@ -170,8 +180,9 @@ class MainWindow(QMainWindow):
     def _rebuild_scene(self, reset_camera: bool) -> None:
         st = self.state
         up = "z" if "builtin" in st.problem.scenario.model else "y"
-        self.viewport.set_scene(st.surface, self.doc.view_nodes(), st.pinned, st.moved, up=up,
-                                reset_camera=reset_camera)
+        self.viewport.set_scene(
+            st.surface, self.doc.view_nodes(), st.pinned, st.moved, up=up, reset_camera=reset_camera
+        )
         self.display_changed()
         self.panel.show_shape(st.lattice.shape)
 
@@ -185,8 +196,14 @@ class MainWindow(QMainWindow):
     def _selection_changed(self) -> None:
         st = self.state
         self.viewport.set_selection(self.doc.selection)
-        self.panel.show_selection(st.lattice, self.doc.selection, self.viewport.nodes,
-                                  st.pinned, st.moved, step=st.surface.size / 100)
+        self.panel.show_selection(
+            st.lattice,
+            self.doc.selection,
+            self.viewport.nodes,
+            st.pinned,
+            st.moved,
+            step=st.surface.size / 100,
+        )
 
     def _status_changed(self) -> None:
         chip, tone, sentence = self.session.status()
@@ -201,8 +218,9 @@ class MainWindow(QMainWindow):
                 label.setText("")
             return
         self.st_level.setText(r.span())
-        self.st_solver.setText(f"σ {r.sigma:.3g} · λ {r.lam:.3g} · |dV|/V0 "
-                               f"{abs(r.rel_volume_error):.1e} (full mesh)")
+        self.st_solver.setText(
+            f"σ {r.sigma:.3g} · λ {r.lam:.3g} · |dV|/V0 {abs(r.rel_volume_error):.1e} (full mesh)"
+        )
         self.st_time.setText(f"{1000 * r.elapsed:.0f} ms")
 
     def _draw(self, nodes: np.ndarray, record=None) -> None:
@@ -211,13 +229,18 @@ class MainWindow(QMainWindow):
         self.viewport.set_frame(nodes, st.surface.deform(nodes))
         self.viewport.update()
         self.redraws += 1
-        self.st_volume.setText(f"Volume {100 * self.viewport.model_volume / st.surface.rest_volume:.2f}"
-                               f" % (target {100 * st.target_ratio:.4g} %)")
+        self.st_volume.setText(
+            f"Volume {100 * self.viewport.model_volume / st.surface.rest_volume:.2f}"
+            f" % (target {100 * st.target_ratio:.4g} %)"
+        )
         if record is not None:
-            self.st_level.setText(f"Level {record.level + 1}/{record.n_levels} · "
-                                  f"{record.triangles:,} triangles")
-            self.st_solver.setText(f"step {record.step} · σ {record.sigma:.3g} · λ "
-                                   f"{record.lam:.3g} · |dV|/V0 {abs(record.rel_volume_error):.1e}")
+            self.st_level.setText(
+                f"Level {record.level + 1}/{record.n_levels} · {record.triangles:,} triangles"
+            )
+            self.st_solver.setText(
+                f"step {record.step} · σ {record.sigma:.3g} · λ "
+                f"{record.lam:.3g} · |dV|/V0 {abs(record.rel_volume_error):.1e}"
+            )
             self.st_time.setText(f"{1000 * record.elapsed:.0f} ms")
             self.plot.update()
         self._selection_changed()
@@ -235,12 +258,14 @@ class MainWindow(QMainWindow):
 
     def _solve_started(self) -> None:
         st = self.state
-        self.plot.reset(st.surface.size, st.problem.scenario.tol_volume,
-                        st.problem.scenario.tol_nodes)
+        self.plot.reset(
+            st.surface.size, st.problem.scenario.tol_volume, st.problem.scenario.tol_nodes
+        )
 
     def _record(self, record) -> None:
-        self.plot.add(record.elapsed, record.nodes, record.rel_volume_error, record.level,
-                      record.level_done)
+        self.plot.add(
+            record.elapsed, record.nodes, record.rel_volume_error, record.level, record.level_done
+        )
 
     def _solve_done(self, gen: int, ok: bool) -> None:
         result = self.session.last_result
@@ -316,11 +341,11 @@ class MainWindow(QMainWindow):
         if len(rows):
             fixed = bool(self.state.fixed[rows].all())
             what = plural(len(rows))
-            menu.addAction(f"Unpin {what}" if fixed else f"Pin {what}",
-                           lambda: self.set_pins(rows, not fixed))
+            menu.addAction(
+                f"Unpin {what}" if fixed else f"Pin {what}", lambda: self.set_pins(rows, not fixed)
+            )
             menu.addSeparator()
-        for a in (self.act_pin_all, self.act_unpin_all, None, self.act_select_all,
-                  self.act_frame):
+        for a in (self.act_pin_all, self.act_unpin_all, None, self.act_select_all, self.act_frame):
             menu.addSeparator() if a is None else menu.addAction(a)
         return menu
 
@@ -340,9 +365,12 @@ class MainWindow(QMainWindow):
     def show_about(self) -> None:
         from .. import __version__
 
-        QMessageBox.about(self, "About Isochor",
-                          f"<b>Isochor</b> {__version__}<br>Volume-preserving free-form "
-                          "deformation after Hirota, Maheshwari and Lin (1999).")
+        QMessageBox.about(
+            self,
+            "About Isochor",
+            f"<b>Isochor</b> {__version__}<br>Volume-preserving free-form "
+            "deformation after Hirota, Maheshwari and Lin (1999).",
+        )
 
     # -- closing -------------------------------------------------------------------------------
     def closeEvent(self, ev) -> None:

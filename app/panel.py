@@ -19,16 +19,17 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from . import style
 from ..core.lattice import MAX_NODES, MIN_NODES
+from . import style
 
 
 def bind(action: QAction, box: QCheckBox) -> None:
     """Keep a checkable action and a check box in step, both ways."""
     box.setChecked(action.isChecked())
     box.toggled.connect(action.setChecked)
-    action.toggled.connect(lambda on: (box.blockSignals(True), box.setChecked(on),
-                                       box.blockSignals(False)))
+    action.toggled.connect(
+        lambda on: (box.blockSignals(True), box.setChecked(on), box.blockSignals(False))
+    )
 
 
 class _WheelGuard(QObject):
@@ -152,7 +153,8 @@ class Panel(QWidget):
             self.shape.append(s)
         self.rebuild = QPushButton("Rebuild lattice")
         self.rebuild.clicked.connect(
-            lambda: self.latticeRequested.emit(tuple(s.value() for s in self.shape)))
+            lambda: self.latticeRequested.emit(tuple(s.value() for s in self.shape))
+        )
         lgrid.addWidget(self.rebuild, 1, 0, 1, 3)
         note = QLabel("Nodes per axis. Rebuilding resets moves and pins.")
         note.setStyleSheet("color: #8b95a5;")
@@ -173,8 +175,15 @@ class Panel(QWidget):
         lay.addStretch(1)
 
     # -- updates from the window (never emit) -----------------------------------------------
-    def show_selection(self, lattice, rows: np.ndarray, nodes: np.ndarray, pinned: np.ndarray,
-                       moved: np.ndarray, step: float) -> None:
+    def show_selection(
+        self,
+        lattice,
+        rows: np.ndarray,
+        nodes: np.ndarray,
+        pinned: np.ndarray,
+        moved: np.ndarray,
+        step: float,
+    ) -> None:
         rows = np.asarray(rows, dtype=int)
         enabled = len(rows) > 0
         for s in self.coord:
@@ -192,15 +201,22 @@ class Panel(QWidget):
             r = int(rows[0])
             i, j, k = lattice.ijk(r)
             self.sel_title.setText(f"Node ({i}, {j}, {k})")
-            role = ("moved by you: fixed until unpinned" if moved[r]
-                    else "pinned" if pinned[r] else "free: the solver moves it")
+            role = (
+                "moved by you: fixed until unpinned"
+                if moved[r]
+                else "pinned"
+                if pinned[r]
+                else "free: the solver moves it"
+            )
             color = style.MOVED if moved[r] else style.PINNED if pinned[r] else style.FREE
             self.sel_role.setText(f'<span style="color:{color}">&#9679;</span> {role}')
             self._set_coords(nodes[r])
         else:
             self.sel_title.setText(f"{len(rows)} nodes selected")
-            self.sel_role.setText(f"{int(fixed.sum())} fixed, {int((~fixed).sum())} free; "
-                                  "the fields show their centre.")
+            self.sel_role.setText(
+                f"{int(fixed.sum())} fixed, {int((~fixed).sum())} free; "
+                "the fields show their centre."
+            )
             self._set_coords(nodes[rows].mean(axis=0))
         self._set_pin(bool(fixed.all()))
 

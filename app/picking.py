@@ -93,17 +93,30 @@ def nearest(proj: Projection, points, x: float, y: float, radius: float = PICK_R
     return int(close[np.argmin(depth[close])])
 
 
-def in_rect(proj: Projection, points, left: float, top: float, right: float,
-            bottom: float) -> np.ndarray:
+def in_rect(
+    proj: Projection, points, left: float, top: float, right: float, bottom: float
+) -> np.ndarray:
     """Rows of the visible points drawn inside the widget rectangle (edges included)."""
     xy, _, visible = proj.project(points)
-    inside = ((xy[:, 0] >= left) & (xy[:, 0] <= right) & (xy[:, 1] >= top)
-              & (xy[:, 1] <= bottom) & visible)
+    inside = (
+        (xy[:, 0] >= left)
+        & (xy[:, 0] <= right)
+        & (xy[:, 1] >= top)
+        & (xy[:, 1] <= bottom)
+        & visible
+    )
     return np.flatnonzero(inside)
 
 
-def drag_delta(proj: Projection, press: tuple[float, float], pos: tuple[float, float],
-               anchor, depth: float, axis=None, plane: bool = False) -> np.ndarray | None:
+def drag_delta(
+    proj: Projection,
+    press: tuple[float, float],
+    pos: tuple[float, float],
+    anchor,
+    depth: float,
+    axis=None,
+    plane: bool = False,
+) -> np.ndarray | None:
     """The world displacement of a drag from widget pixel ``press`` to ``pos``.
 
     - no ``axis``: in the view plane through the grabbed point (``anchor`` at ``depth``),

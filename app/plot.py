@@ -36,11 +36,12 @@ class ConvergencePlot(QWidget):
         self.tol_nodes = 1e-3
         self.reset()
 
-    def sizeHint(self) -> QSize:  # noqa: D102
+    def sizeHint(self) -> QSize:
         return QSize(520, 170)
 
-    def reset(self, size_ref: float = 1.0, tol_volume: float = 5e-4,
-              tol_nodes: float = 1e-3) -> None:
+    def reset(
+        self, size_ref: float = 1.0, tol_volume: float = 5e-4, tol_nodes: float = 1e-3
+    ) -> None:
         self.size_ref = float(size_ref) or 1.0
         self.tol_volume, self.tol_nodes = tol_volume, tol_nodes
         self.t: list[float] = []
@@ -51,8 +52,9 @@ class ConvergencePlot(QWidget):
         self.final = False
         self.update()
 
-    def add(self, t: float, nodes: np.ndarray, rel_volume_error: float, level: int,
-            level_done: bool) -> None:
+    def add(
+        self, t: float, nodes: np.ndarray, rel_volume_error: float, level: int, level_done: bool
+    ) -> None:
         prev = self.nodes[-1] if self.nodes else None
         change = 0.0 if prev is None else float(np.max(np.abs(nodes - prev))) / self.size_ref
         self.t.append(float(t))
@@ -73,7 +75,7 @@ class ConvergencePlot(QWidget):
         self.update()
 
     # -- painting ----------------------------------------------------------------------------
-    def paintEvent(self, ev) -> None:  # noqa: N802
+    def paintEvent(self, ev) -> None:
         p = QPainter(self)
         p.setRenderHint(QPainter.RenderHint.Antialiasing)
         p.fillRect(self.rect(), QColor("#1b1e23"))
@@ -82,13 +84,19 @@ class ConvergencePlot(QWidget):
         p.setFont(font)
         fm = p.fontMetrics()
         left, right, top, bottom = fm.horizontalAdvance("1e-10") + 12, 14, 24, fm.height() + 10
-        plot = QRectF(left, top, max(10, self.width() - left - right),
-                      max(10, self.height() - top - bottom))
+        plot = QRectF(
+            left, top, max(10, self.width() - left - right), max(10, self.height() - top - bottom)
+        )
 
         t = np.array(self.t)
-        series = [(np.array(self.node_change), style.PLOT_NODES,
-                   "max node error vs final" if self.final else "max node change"),
-                  (np.array(self.volume), style.PLOT_VOLUME, "|dV| / V0")]
+        series = [
+            (
+                np.array(self.node_change),
+                style.PLOT_NODES,
+                "max node error vs final" if self.final else "max node change",
+            ),
+            (np.array(self.volume), style.PLOT_VOLUME, "|dV| / V0"),
+        ]
         vals = np.concatenate([s[0] for s in series]) if len(t) else np.array([])
         vals = vals[np.isfinite(vals) & (vals > 0)]
         hi = max(1e-2, float(vals.max()) if len(vals) else 1e-2)
@@ -104,7 +112,7 @@ class ConvergencePlot(QWidget):
             return plot.left() + plot.width() * tt / t_max
 
         def py(v):
-            e = math.log10(max(v, 10.0 ** lo_e))
+            e = math.log10(max(v, 10.0**lo_e))
             return plot.bottom() - plot.height() * (e - lo_e) / (hi_e - lo_e)
 
         grid = QPen(QColor("#2c313a"))
@@ -112,22 +120,28 @@ class ConvergencePlot(QWidget):
         p.setPen(grid)
         step = max(1, (hi_e - lo_e) // 5)
         for e in range(lo_e, hi_e + 1):
-            y = py(10.0 ** e)
+            y = py(10.0**e)
             p.setPen(grid)
             p.drawLine(QPointF(plot.left(), y), QPointF(plot.right(), y))
             if (e - lo_e) % step == 0:
                 p.setPen(axis_text)
                 label = f"1e{e}"
-                p.drawText(QRectF(0, y - fm.height() / 2, left - 6, fm.height()),
-                           Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter, label)
+                p.drawText(
+                    QRectF(0, y - fm.height() / 2, left - 6, fm.height()),
+                    Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter,
+                    label,
+                )
         # time ticks
         for tt in _nice_ticks(t_max):
             x = px(tt)
             p.setPen(grid)
             p.drawLine(QPointF(x, plot.top()), QPointF(x, plot.bottom()))
             p.setPen(axis_text)
-            p.drawText(QRectF(x - 30, plot.bottom() + 3, 60, fm.height()),
-                       Qt.AlignmentFlag.AlignHCenter, _fmt_time(tt))
+            p.drawText(
+                QRectF(x - 30, plot.bottom() + 3, 60, fm.height()),
+                Qt.AlignmentFlag.AlignHCenter,
+                _fmt_time(tt),
+            )
         # before the first record: the solver set its levels up (bases, volume operators)
         if len(t) and t[0] > 0.05 * t_max:
             band = QRectF(plot.left(), plot.top(), px(t[0]) - plot.left(), plot.height())
@@ -144,8 +158,10 @@ class ConvergencePlot(QWidget):
             p.setPen(QColor("#6b7480"))
             p.drawText(QPointF(x + 2, plot.top() + fm.ascent()), f"L{k + 1}")
         # tolerances
-        for tol, color in ((self.tol_volume, style.PLOT_VOLUME),
-                           (self.tol_nodes, style.PLOT_NODES)):
+        for tol, color in (
+            (self.tol_volume, style.PLOT_VOLUME),
+            (self.tol_nodes, style.PLOT_NODES),
+        ):
             c = QColor(color)
             c.setAlpha(110)
             p.setPen(QPen(c, 1, Qt.PenStyle.DotLine))
@@ -180,9 +196,11 @@ class ConvergencePlot(QWidget):
             p.drawText(QPointF(x + 22, y + fm.ascent() / 2 - 1), label)
             x += 22 + fm.horizontalAdvance(label) + 18
         p.setPen(axis_text)
-        p.drawText(QRectF(plot.right() - 160, 0, 160, top),
-                   Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter,
-                   "dotted: tolerances")
+        p.drawText(
+            QRectF(plot.right() - 160, 0, 160, top),
+            Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter,
+            "dotted: tolerances",
+        )
         p.end()
 
 

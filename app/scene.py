@@ -31,7 +31,8 @@ class Shading:
         f = len(self.faces)
         self._gather = sp.csr_matrix(
             (np.ones(3 * f), (self.faces.ravel(), np.repeat(np.arange(f), 3))),
-            shape=(n_vertices, f))
+            shape=(n_vertices, f),
+        )
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """(m, 3) unit vertex normals (zero-area neighbourhoods get (0, 0, 0))."""
@@ -86,8 +87,14 @@ class Scene:
 
         ghost = pv.PolyData(np.array(full.vertices), _cells(faces))
         self.actors["ghost"] = p.add_mesh(
-            ghost, color=style.GHOST, opacity=0.28, show_scalar_bar=False, render=False,
-            pickable=False, name="ghost")
+            ghost,
+            color=style.GHOST,
+            opacity=0.28,
+            show_scalar_bar=False,
+            render=False,
+            pickable=False,
+            name="ghost",
+        )
         self.actors["ghost"].SetVisibility(False)
 
         points = surface.deform(self.nodes)
@@ -99,8 +106,17 @@ class Scene:
         self.volume = signed_volume(points, faces)
         self._model = model
         self.actors["model"] = p.add_mesh(
-            model, color=style.MODEL, smooth_shading=False, specular=0.25, specular_power=20,
-            diffuse=0.85, ambient=0.12, show_scalar_bar=False, render=False, name="model")
+            model,
+            color=style.MODEL,
+            smooth_shading=False,
+            specular=0.25,
+            specular_power=20,
+            diffuse=0.85,
+            ambient=0.12,
+            show_scalar_bar=False,
+            render=False,
+            name="model",
+        )
 
         edges = np.asarray(surface.springs.edges)
         lattice = surface.lattice
@@ -109,27 +125,58 @@ class Scene:
         self._springs_axis = pv.PolyData(self.nodes.copy(), lines=_cells(edges[axis_edge]))
         self._springs_diag = pv.PolyData(self.nodes.copy(), lines=_cells(edges[~axis_edge]))
         self.actors["diag"] = p.add_mesh(
-            self._springs_diag, color=style.SPRING_DIAGONAL, line_width=1.0, lighting=False,
-            render=False, pickable=False, name="diag")
+            self._springs_diag,
+            color=style.SPRING_DIAGONAL,
+            line_width=1.0,
+            lighting=False,
+            render=False,
+            pickable=False,
+            name="diag",
+        )
         self.actors["axis"] = p.add_mesh(
-            self._springs_axis, color=style.SPRING_AXIS, line_width=2.0, lighting=False,
-            render=False, pickable=False, name="axis")
+            self._springs_axis,
+            color=style.SPRING_AXIS,
+            line_width=2.0,
+            lighting=False,
+            render=False,
+            pickable=False,
+            name="axis",
+        )
 
         self._nodes_poly = pv.PolyData(self.nodes.copy())
         self._nodes_poly.point_data["rgb"] = np.zeros((len(self.nodes), 3), dtype=np.uint8)
         self.actors["nodes"] = p.add_mesh(
-            self._nodes_poly, scalars="rgb", rgb=True, render_points_as_spheres=True,
-            point_size=NODE_SIZE, show_scalar_bar=False, render=False, pickable=False,
-            name="nodes")
+            self._nodes_poly,
+            scalars="rgb",
+            rgb=True,
+            render_points_as_spheres=True,
+            point_size=NODE_SIZE,
+            show_scalar_bar=False,
+            render=False,
+            pickable=False,
+            name="nodes",
+        )
         self._sel_poly = pv.PolyData(np.zeros((1, 3)))
         self.actors["selected"] = p.add_mesh(
-            self._sel_poly, color=style.SELECTED, render_points_as_spheres=True,
-            point_size=SELECTED_SIZE, render=False, pickable=False, name="selected")
+            self._sel_poly,
+            color=style.SELECTED,
+            render_points_as_spheres=True,
+            point_size=SELECTED_SIZE,
+            render=False,
+            pickable=False,
+            name="selected",
+        )
         self.actors["selected"].SetVisibility(False)
         self._guide = pv.Line((0, 0, 0), (1, 0, 0))
         self.actors["guide"] = p.add_mesh(
-            self._guide, color=style.GUIDE, line_width=2.5, lighting=False, render=False,
-            pickable=False, name="guide")
+            self._guide,
+            color=style.GUIDE,
+            line_width=2.5,
+            lighting=False,
+            render=False,
+            pickable=False,
+            name="guide",
+        )
         self.actors["guide"].SetVisibility(False)
 
         self.set_flags(pinned, moved)

@@ -45,9 +45,17 @@ class SolveSummary:
     @classmethod
     def of(cls, result, n_levels: int) -> SolveSummary:
         """The summary of a :class:`isochor.core.multilevel.SolveResult`."""
-        return cls(bool(result.converged), result.message, tuple(s.level for s in result.levels),
-                   n_levels, float(result.rel_volume_error), int(result.free_nodes),
-                   float(result.sigma), float(result.lam), float(result.elapsed))
+        return cls(
+            bool(result.converged),
+            result.message,
+            tuple(s.level for s in result.levels),
+            n_levels,
+            float(result.rel_volume_error),
+            int(result.free_nodes),
+            float(result.sigma),
+            float(result.lam),
+            float(result.elapsed),
+        )
 
     @classmethod
     def failed(cls, message: str) -> SolveSummary:
@@ -121,10 +129,13 @@ class DocState:
 
     def same_edit(self, other: DocState) -> bool:
         """True when both describe the same edit (nodes, flags, target, problem)."""
-        return (self.problem is other.problem and self.target_ratio == other.target_ratio
-                and np.array_equal(self.nodes, other.nodes)
-                and np.array_equal(self.pinned, other.pinned)
-                and np.array_equal(self.moved, other.moved))
+        return (
+            self.problem is other.problem
+            and self.target_ratio == other.target_ratio
+            and np.array_equal(self.nodes, other.nodes)
+            and np.array_equal(self.pinned, other.pinned)
+            and np.array_equal(self.moved, other.moved)
+        )
 
 
 class StateCell:
@@ -151,8 +162,7 @@ def initial_state(problem: Problem) -> DocState:
         pinned[lat.index(*p)] = True
     # Nothing moved and the volume kept: the rest lattice is already the answer.
     at_rest = not moved.any() and sc.target_volume_ratio == 1.0
-    return DocState(problem, problem.nodes, pinned, moved, sc.target_volume_ratio,
-                    solved=at_rest)
+    return DocState(problem, problem.nodes, pinned, moved, sc.target_volume_ratio, solved=at_rest)
 
 
 def describe_status(state: DocState, *, preserve: bool, activity: str) -> tuple[str, str, str]:
@@ -163,22 +173,27 @@ def describe_status(state: DocState, *, preserve: bool, activity: str) -> tuple[
     ``"neutral"``, ``"busy"``, ``"good"`` and ``"bad"``.
     """
     if not preserve:
-        return ("Plain FFD", "neutral",
-                "Volume constraint off: plain free-form deformation.")
+        return ("Plain FFD", "neutral", "Volume constraint off: plain free-form deformation.")
     if activity == "dragging":
         return "Dragging", "busy", "Release to solve."
     if activity == "solving":
         return "Solving…", "busy", "Solving…"
     r = state.result
     if activity == "failed" or (state.solved and r is not None and not r.converged):
-        return ("Not converged" if activity != "failed" else "Solver failed", "bad",
-                (r.message if r is not None and r.message else "The solve did not converge."))
+        return (
+            "Not converged" if activity != "failed" else "Solver failed",
+            "bad",
+            (r.message if r is not None and r.message else "The solve did not converge."),
+        )
     if activity == "stopped" and not state.solved:
         return "Stopped", "neutral", "Stopped before converging: Solve again to finish."
     if not state.solved:
         return "Edited", "neutral", "Not solved yet."
     if r is None:
         return "At rest", "good", "At rest: nothing to solve."
-    return ("Converged", "good",
-            f"Converged: |dV|/V0 = {abs(r.rel_volume_error):.1e} on the full mesh, "
-            f"{plural(r.free_nodes, 'free node')}.")
+    return (
+        "Converged",
+        "good",
+        f"Converged: |dV|/V0 = {abs(r.rel_volume_error):.1e} on the full mesh, "
+        f"{plural(r.free_nodes, 'free node')}.",
+    )

@@ -37,14 +37,18 @@ def legend_html() -> str:
         size = "15px" if big else "13px"
         return f'<span style="color:{color}; font-size:{size}">&#9679;</span>&nbsp;{label}'
 
-    rows = [dot(FREE, "free"), dot(PINNED, "pinned"), dot(MOVED, "moved (fixed)"),
-            dot(SELECTED, "selected", True)]
+    rows = [
+        dot(FREE, "free"),
+        dot(PINNED, "pinned"),
+        dot(MOVED, "moved (fixed)"),
+        dot(SELECTED, "selected", True),
+    ]
     return "&nbsp;&nbsp;&nbsp;".join(rows)
 
 
 def apply_dark_theme(app) -> None:
     """Fusion style with a dark palette: a calm frame around the 3D view."""
-    from PySide6.QtGui import QColor, QPalette  # noqa: PLC0415
+    from PySide6.QtGui import QColor, QPalette
 
     app.setStyle("Fusion")
     pal = QPalette()
@@ -63,8 +67,11 @@ def apply_dark_theme(app) -> None:
     pal.setColor(QPalette.ColorRole.HighlightedText, QColor("#ffffff"))
     pal.setColor(QPalette.ColorRole.Link, QColor(FREE))
     pal.setColor(QPalette.ColorRole.PlaceholderText, QColor("#7d8590"))
-    for role in (QPalette.ColorRole.WindowText, QPalette.ColorRole.Text,
-                 QPalette.ColorRole.ButtonText):
+    for role in (
+        QPalette.ColorRole.WindowText,
+        QPalette.ColorRole.Text,
+        QPalette.ColorRole.ButtonText,
+    ):
         pal.setColor(QPalette.ColorGroup.Disabled, role, QColor("#6b727c"))
     app.setPalette(pal)
     app.setStyleSheet(STYLESHEET)

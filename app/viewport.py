@@ -20,6 +20,7 @@ projection and picking maths are in :mod:`isochor.app.picking`. GUI thread only.
 from __future__ import annotations
 
 import time
+
 import numpy as np
 import pyvista as pv
 from PySide6.QtCore import QPoint, QPointF, QRect, QSize, Qt, Signal
@@ -28,17 +29,15 @@ from pyvistaqt import QtInteractor
 
 from ..core.formats import is_model, is_scenario
 from . import picking, style
+from .camera import AXES, CameraMixin
 from .gestures import BoxPress, CameraPress, ContextPress, IgnorePress, NodeDrag, NodePress
 from .scene import Scene
 
 #: The mouse must travel this many pixels before a press becomes a drag.
 DRAG_THRESHOLD = 3.0
 
-AXES = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]),
-        "z": np.array([0.0, 0.0, 1.0])}
 
-
-class Viewport(QtInteractor):
+class Viewport(CameraMixin, QtInteractor):
     """The pyvistaqt view with Isochor's actors and node interaction.
 
     Signals
@@ -101,8 +100,9 @@ class Viewport(QtInteractor):
         """Signed volume of the model as drawn."""
         return self.scene.volume
 
-    def set_scene(self, surface, nodes, pinned, moved, *, up: str = "z",
-                  reset_camera: bool = True) -> None:
+    def set_scene(
+        self, surface, nodes, pinned, moved, *, up: str = "z", reset_camera: bool = True
+    ) -> None:
         """Build the actors of a model in a lattice; ``reset_camera`` frames it."""
         self._size = float(surface.size)
         self._up = AXES[up]
@@ -153,69 +153,6 @@ class Viewport(QtInteractor):
             self._needs_home = False
             self.home_view()
 
-    # -- camera ------------------------------------------------------------------------------
-    def _basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(forward-ish, side, up) world directions for the model's up axis."""
-        up = self._up
-        if up[2] == 1:
-            return np.array([0.0, -1.0, 0.0]), np.array([1.0, 0.0, 0.0]), up
-        return np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]), up  # y up: look down -z
-
-    def home_view(self) -> None:
-        front, side, up = self._basis()
-        self._view(1.0 * front + 0.6 * side + 0.45 * up, up)
-
-    def standard_view(self, name: str) -> None:
-        if name == "home":
-            self.home_view()
-            return
-        front, side, up = self._basis()
-        views = {"front": (front, up), "back": (-front, up), "right": (side, up),
-                 "left": (-side, up), "top": (up, -front), "bottom": (-up, front)}
-        self._view(*views[name])
-
-    def _view(self, direction, up) -> None:
-        pts = self._framed_points()
-        focal = (pts.min(axis=0) + pts.max(axis=0)) / 2
-        self.camera_position = [tuple(focal + np.asarray(direction, float)), tuple(focal),
-                                tuple(up)]
-        self.frame()
-
-    def _framed_points(self) -> np.ndarray:
-        if not self.scene.built:
-            return np.zeros((1, 3))
-        return np.vstack([self.nodes, self.scene.bounds()])
-
-    def frame(self) -> None:
-        """Fit the model and the lattice in the view, keeping the direction."""
-        if not self.scene.built:
-            self.reset_camera(render=False)
-            self.update()
-            return
-        pts = self._framed_points()
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
-        self.reset_camera(render=False, bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
-        self._fit(pts)
-        self.update()
-
-    def _fit(self, pts: np.ndarray, fill: float = 0.86) -> None:
-        """Zoom so that ``pts`` fill ``fill`` of the view (a bounding sphere wastes room)."""
-        w, h = self.width(), self.height()
-        if w < 10 or h < 10:
-            return
-        for _ in range(4):
-            xy, _, visible = self.projection().project(pts)
-            if not visible.all():
-                return
-            extent = max(np.abs(xy[:, 0] - w / 2).max() / (w / 2),
-                         np.abs(xy[:, 1] - h / 2).max() / (h / 2))
-            if extent <= 0:
-                return
-            factor = fill / extent
-            if abs(factor - 1) < 0.02:
-                return
-            self.camera.zoom(factor)
-
     # -- projection --------------------------------------------------------------------------
     def projection(self) -> picking.Projection:
         """The current world-to-widget projection (camera and window size)."""
@@ -237,8 +174,9 @@ class Viewport(QtInteractor):
         return picking.nearest(self.projection(), self.nodes, pos.x(), pos.y())
 
     def nodes_in_rect(self, rect: QRect) -> np.ndarray:
-        return picking.in_rect(self.projection(), self.nodes, rect.left(), rect.top(),
-                               rect.right(), rect.bottom())
+        return picking.in_rect(
+            self.projection(), self.nodes, rect.left(), rect.top(), rect.right(), rect.bottom()
+        )
 
     # -- dragging ----------------------------------------------------------------------------
     @property
@@ -249,8 +187,15 @@ class Viewport(QtInteractor):
         drag = self._drag
         drag.pos = pos
         axis = AXES[drag.axis] if drag.axis is not None else None
-        delta = picking.drag_delta(self.projection(), (drag.press.x(), drag.press.y()),
-                                   (pos.x(), pos.y()), drag.anchor, drag.depth, axis, drag.plane)
+        delta = picking.drag_delta(
+            self.projection(),
+            (drag.press.x(), drag.press.y()),
+            (pos.x(), pos.y()),
+            drag.anchor,
+            drag.depth,
+            axis,
+            drag.plane,
+        )
         if delta is not None:
             drag.delta = delta
         self.dragMoved.emit(drag.delta.copy())
@@ -415,4 +360,3 @@ class Viewport(QtInteractor):
 
     def keyReleaseEvent(self, ev) -> None:
         ev.ignore()
-

@@ -36,8 +36,9 @@ class _Job:
         self.make = make
         self.stop_flag = threading.Event()
         self.lock = threading.Lock()
-        self.thread = threading.Thread(target=self.run, name=f"isochor-solve-{generation}",
-                                       daemon=True)
+        self.thread = threading.Thread(
+            target=self.run, name=f"isochor-solve-{generation}", daemon=True
+        )
 
     def stop(self) -> None:
         with self.lock:
@@ -66,7 +67,7 @@ class _Job:
                 gen.close()  # on this thread, which is the one running it
         except IsochorError as exc:
             self._emit(w.failed, str(exc))
-        except Exception as exc:  # noqa: BLE001 (a solver bug must reach the user, not kill Qt)
+        except Exception as exc:
             traceback.print_exc(file=sys.stderr)
             self._emit(w.failed, f"The solver failed unexpectedly: {type(exc).__name__}: {exc}")
         finally:
@@ -102,8 +103,15 @@ class SolveWorker(QObject):
         job = self._job
         return job is not None and job.thread.is_alive() and not job.stop_flag.is_set()
 
-    def start(self, surface, nodes: np.ndarray, fixed: np.ndarray, *, target_ratio: float,
-              options: SolverOptions | None = None) -> int:
+    def start(
+        self,
+        surface,
+        nodes: np.ndarray,
+        fixed: np.ndarray,
+        *,
+        target_ratio: float,
+        options: SolverOptions | None = None,
+    ) -> int:
         """Stop the running solve and start a new one; returns its generation id."""
         self.stop()
         self._generation += 1
@@ -131,7 +139,7 @@ class SolveWorker(QObject):
 
         Returns True when every thread ended. A thread still inside a long step ends on
         its own after that step, emitting nothing (it is a daemon thread)."""
-        import time  # noqa: PLC0415
+        import time
 
         self.stop()
         deadline = time.monotonic() + timeout

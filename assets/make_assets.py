@@ -19,12 +19,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from PIL import Image, ImageDraw
+
 from isochor.assets import EXAMPLE_NAMES, EXAMPLES_SUBDIR, ICON_FILE, MODEL_FILES
 from isochor.core.atomic import atomic_write_bytes, atomic_write_text
 from isochor.core.examples import EXAMPLES, example_scenario
 from isochor.core.mesh import TriMesh
 from isochor.core.shapes import club_levels, torus_levels
-from PIL import Image, ImageDraw
 
 #: This script's folder, the default output folder.
 HERE = Path(__file__).resolve().parent

@@ -14,12 +14,12 @@ benchmark and the tests all run exactly the same document.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
-from .errors import IsochorError
 from .defaults import PADDING, TOL_NODES, TOL_VOLUME
+from .errors import IsochorError
 from .lattice import Lattice
 from .scenario import Scenario
 from .shapes import builtin_levels
@@ -32,8 +32,7 @@ EXAMPLES: dict[str, str] = {
 }
 
 
-
-@lru_cache(maxsize=None)
+@cache
 def _rest_lattice(shape_name: str, nodes: tuple[int, int, int]) -> Lattice:
     return Lattice.around(builtin_levels(shape_name)[-1].vertices, nodes, PADDING)
 
@@ -57,20 +56,23 @@ def example_scenario(name: str) -> Scenario:
     if name == "torus-compression":
         lat = _rest_lattice("torus", (3, 3, 3))
         q = lat.axes[2, 2] / 4
-        moves = _moves(lat, lambda i, j, k: k != 1,
-                       lambda ijk, p: (0.0, 0.0, q if ijk[2] == 0 else -q))
+        moves = _moves(
+            lat, lambda i, j, k: k != 1, lambda ijk, p: (0.0, 0.0, q if ijk[2] == 0 else -q)
+        )
         model = {"builtin": "torus"}
     elif name == "torus-stretch":
         lat = _rest_lattice("torus", (5, 2, 2))
         d = 0.2 * lat.axes[0, 0]
-        moves = _moves(lat, lambda i, j, k: i != 2,
-                       lambda ijk, p: (-d if ijk[0] < 2 else d, 0.0, 0.0))
+        moves = _moves(
+            lat, lambda i, j, k: i != 2, lambda ijk, p: (-d if ijk[0] < 2 else d, 0.0, 0.0)
+        )
         model = {"builtin": "torus"}
     elif name == "club-compression":
         lat = _rest_lattice("club", (5, 2, 2))
         d = 0.25 * lat.axes[0, 0] / 4  # the first cell shrinks to a quarter... of its length
-        moves = _moves(lat, lambda i, j, k: i <= 1,
-                       lambda ijk, p: (3 * d if ijk[0] == 0 else d, 0.0, 0.0))
+        moves = _moves(
+            lat, lambda i, j, k: i <= 1, lambda ijk, p: (3 * d if ijk[0] == 0 else d, 0.0, 0.0)
+        )
         model = {"builtin": "club"}
     else:  # club-bend
         lat = _rest_lattice("club", (5, 2, 2))
@@ -81,8 +83,16 @@ def example_scenario(name: str) -> Scenario:
         def bend(ijk, p):
             x, z = p[0] - center[0], p[2] - center[2]
             theta = x / radius
-            bent = np.array([(radius - z) * np.sin(theta), p[1] - center[1],
-                             radius - (radius - z) * np.cos(theta)]) + center
+            bent = (
+                np.array(
+                    [
+                        (radius - z) * np.sin(theta),
+                        p[1] - center[1],
+                        radius - (radius - z) * np.cos(theta),
+                    ]
+                )
+                + center
+            )
             return bent - p
 
         moves = _moves(lat, lambda i, j, k: i != 2, bend)

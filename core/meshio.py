@@ -98,14 +98,15 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
                 loaded = loaded.to_mesh()
             vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), np.float64)
             faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), np.int64)
-    except Exception as exc:  # noqa: BLE001 (trimesh raises many kinds on bad files)
+    except Exception as exc:
         detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise IsochorError(
             f"{path.name}: not a readable {kind.upper()} file (damaged or truncated?): {detail}"
         ) from None
     if faces.size == 0:
-        raise IsochorError(f"{path.name}: no triangles found (not a valid {kind.upper()} file, "
-                           "or an empty mesh)")
+        raise IsochorError(
+            f"{path.name}: no triangles found (not a valid {kind.upper()} file, or an empty mesh)"
+        )
     if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3:
         raise IsochorError(f"{path.name}: not a triangle mesh")
     if faces.min() < 0 or faces.max() >= len(vertices):
@@ -133,8 +134,10 @@ def save_mesh(path: str | Path, mesh: TriMesh) -> None:
     suffix = path.suffix.lower()
     if suffix not in WRITE_FORMATS:
         known = listing(WRITE_FORMATS)
-        raise IsochorError(f"{path.name}: cannot write {suffix or 'a file without extension'};"
-                           f" use one of {known} (by the file extension)")
+        raise IsochorError(
+            f"{path.name}: cannot write {suffix or 'a file without extension'};"
+            f" use one of {known} (by the file extension)"
+        )
     atomic_write_bytes(path, mesh_bytes(mesh, suffix))
 
 
@@ -162,8 +165,7 @@ def mesh_bytes(mesh: TriMesh, suffix: str) -> bytes:
         normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         length = np.linalg.norm(normals, axis=1, keepdims=True)
         normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
-        rows = np.zeros(len(f), dtype=[("n", "<f4", (3,)), ("v", "<f4", (3, 3)),
-                                       ("a", "<u2")])
+        rows = np.zeros(len(f), dtype=[("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("a", "<u2")])
         rows["n"], rows["v"] = normals, tri
         head = b"binary STL written by Isochor".ljust(80, b" ")
         return head + np.uint32(len(f)).tobytes() + rows.tobytes()

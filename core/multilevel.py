@@ -33,64 +33,10 @@ from .errors import IsochorError
 from .generators import relay
 from .lattice import Lattice, PointBasis
 from .mesh import TriMesh
+from .records import LevelStats, Progress, SolveResult, frozen_copy
 from .solver import LevelProblem, SolverOptions, augmented_lagrangian
 from .springs import SpringNetwork
 from .volume import VolumeOperator, signed_volume
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=np.float64)
-    a.flags.writeable = False
-    return a
-
-
-@dataclass(frozen=True)
-class Progress:
-    """A snapshot of a running solve. ``nodes`` is a read-only copy."""
-
-    nodes: np.ndarray  #: (n, 3) node positions, world units
-    level: int  #: index in the pyramid, 0 = coarsest
-    n_levels: int
-    triangles: int  #: triangles of this level
-    step: int  #: inner steps so far at this level
-    rel_volume_error: float  #: (V - V_target) / V0 on this level
-    sigma: float
-    lam: float
-    energy: float  #: spring energy with lengths in units of the object size
-    elapsed: float  #: seconds since the solve started
-    level_done: bool = False  #: True for the record that closes a level
-    max_node_change: float | None = None  #: at a level's end: vs the previous level, / size
-
-
-@dataclass(frozen=True)
-class LevelStats:
-    """One row of the paper's Table 2."""
-
-    level: int
-    triangles: int
-    steps: int
-    time_s: float
-    max_node_change: float  #: largest node coordinate change vs the previous level, / size
-    rel_volume_error: float  #: on this level's own mesh
-    error_estimate: float | None  #: Eq 29 estimate of this level's discretisation error
-
-
-@dataclass(frozen=True)
-class SolveResult:
-    nodes: np.ndarray  #: (n, 3) final node positions
-    levels: tuple[LevelStats, ...]
-    terminal_level: int
-    volume_original: float  #: full-resolution mesh, rest lattice
-    volume_target: float
-    volume_final: float  #: full-resolution mesh, final nodes
-    rel_volume_error: float  #: (volume_final - volume_target) / volume_original
-    energy: float
-    free_nodes: int
-    elapsed: float
-    converged: bool
-    message: str = ""
-    lam: float = 0.0
-    sigma: float = 0.0
 
 
 class _Level:
@@ -223,8 +169,10 @@ def solve(
     size, center = surface.size, surface.center
     n_levels = len(surface.levels)
     if start_level is None:
-        start_level = next((k for k, m in enumerate(surface.levels)
-                            if m.n_faces >= opts.start_triangles), n_levels - 1)
+        start_level = next(
+            (k for k, m in enumerate(surface.levels) if m.n_faces >= opts.start_triangles),
+            n_levels - 1,
+        )
     start_level = start_level % n_levels
 
     def result(x, stats, terminal, lam, sigma, converged, message=""):
@@ -237,8 +185,20 @@ def solve(
         if converged and not ok:
             message = message or f"volume error {err:.2e} on the full mesh exceeds the tolerance"
         return SolveResult(
-            _frozen(x), tuple(stats), terminal, full.rest_volume, target, v_final, err, energy,
-            int(free.sum()), time.perf_counter() - t0, ok, message, lam, sigma,
+            frozen_copy(x),
+            tuple(stats),
+            terminal,
+            full.rest_volume,
+            target,
+            v_final,
+            err,
+            energy,
+            int(free.sum()),
+            time.perf_counter() - t0,
+            ok,
+            message,
+            lam,
+            sigma,
         )
 
     if not free.any():
@@ -254,9 +214,16 @@ def solve(
     # The first record comes before any work on the fine levels, so a window can redraw
     # the user's edit at once.
     yield Progress(
-        _frozen(x), start_level, n_levels, first.triangles, 0,
-        (v - target_ratio * first.rest_volume) / v_ref, opts.sigma0, 0.0,
-        surface.springs.energy(x) / size**2, time.perf_counter() - t0,
+        frozen_copy(x),
+        start_level,
+        n_levels,
+        first.triangles,
+        0,
+        (v - target_ratio * first.rest_volume) / v_ref,
+        opts.sigma0,
+        0.0,
+        surface.springs.energy(x) / size**2,
+        time.perf_counter() - t0,
     )
 
     lam, sigma = 0.0, opts.sigma0
@@ -278,15 +245,29 @@ def solve(
         t_level = time.perf_counter()
         level = surface.level(k)
         problem = LevelProblem(
-            x, free, surface.springs.energy_and_gradient, level.volume_and_gradient,
-            center, size, target_ratio * level.rest_volume, v_ref,
+            x,
+            free,
+            surface.springs.energy_and_gradient,
+            level.volume_and_gradient,
+            center,
+            size,
+            target_ratio * level.rest_volume,
+            v_ref,
         )
         run = augmented_lagrangian(problem, problem.to_y(x), lam, sigma, opts)
 
         def progress(it, k=k, level=level, problem=problem):
             return Progress(
-                _frozen(problem.to_nodes(it.y)), k, n_levels, level.triangles, it.step,
-                it.deviation, it.sigma, it.lam, it.energy, time.perf_counter() - t0,
+                frozen_copy(problem.to_nodes(it.y)),
+                k,
+                n_levels,
+                level.triangles,
+                it.step,
+                it.deviation,
+                it.sigma,
+                it.lam,
+                it.energy,
+                time.perf_counter() - t0,
             )
 
         try:
@@ -306,16 +287,40 @@ def solve(
             ratio = level.triangles / prev.triangles
             estimate = abs(g_prev - al.deviation) / max(ratio - 1.0, 1e-9)
         stats.append(
-            LevelStats(k, level.triangles, al.steps, time.perf_counter() - t_level, change,
-                       al.deviation, estimate)
+            LevelStats(
+                k,
+                level.triangles,
+                al.steps,
+                time.perf_counter() - t_level,
+                change,
+                al.deviation,
+                estimate,
+            )
         )
         yield Progress(
-            _frozen(x), k, n_levels, level.triangles, al.steps, al.deviation, sigma, lam,
-            al.energy, time.perf_counter() - t0, True, change,
+            frozen_copy(x),
+            k,
+            n_levels,
+            level.triangles,
+            al.steps,
+            al.deviation,
+            sigma,
+            lam,
+            al.energy,
+            time.perf_counter() - t0,
+            True,
+            change,
         )
         if not al.converged:
-            return result(x, stats, k, lam, sigma, False,
-                          f"the volume constraint did not converge on level {k}")
+            return result(
+                x,
+                stats,
+                k,
+                lam,
+                sigma,
+                False,
+                f"the volume constraint did not converge on level {k}",
+            )
         if k == n_levels - 1:
             converged_level = True
             break
@@ -338,6 +343,7 @@ def _warm_start(surface, x, free, target_ratio, v_ref, opts) -> tuple[int, float
     A converged result restarted this way stops after one level and no steps, instead of
     re-deriving a different equilibrium from the coarse levels (the paper's Plate 6).
     """
+
     def deviation(k):
         lvl = surface.level(k)
         return (lvl.volume(x) - target_ratio * lvl.rest_volume) / v_ref
@@ -346,9 +352,15 @@ def _warm_start(surface, x, free, target_ratio, v_ref, opts) -> tuple[int, float
     if abs(g_full) > opts.tol_volume:
         return None
     n = len(surface.levels)
-    k = next(k for k in range(n) if k == n - 1 or (
-        abs(deviation(k)) <= opts.volume_margin * opts.tol_volume
-        and abs(deviation(k) - g_full) <= opts.tol_volume))
+    k = next(
+        k
+        for k in range(n)
+        if k == n - 1
+        or (
+            abs(deviation(k)) <= opts.volume_margin * opts.tol_volume
+            and abs(deviation(k) - g_full) <= opts.tol_volume
+        )
+    )
     _, dv = surface.level(k).volume_and_gradient(x)
     _, de = surface.springs.energy_and_gradient(x)
     de, dv = de[free].ravel() / surface.size, dv[free].ravel() * surface.size / v_ref

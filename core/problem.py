@@ -36,8 +36,7 @@ class Problem:
 
     @property
     def options(self) -> SolverOptions:
-        return SolverOptions(tol_volume=self.scenario.tol_volume,
-                             tol_nodes=self.scenario.tol_nodes)
+        return SolverOptions(tol_volume=self.scenario.tol_volume, tol_nodes=self.scenario.tol_nodes)
 
 
 #: ``path -> (levels coarse to fine, warnings)``: how a model file becomes a pyramid.
@@ -59,8 +58,12 @@ def model_levels(scenario: Scenario, loader: LevelLoader | None = None):
     return (loader or load_levels)(scenario.model_path())
 
 
-def build(scenario: Scenario, loader: LevelLoader | None = None,
-          levels: list[TriMesh] | None = None, warnings: list[str] | None = None) -> Problem:
+def build(
+    scenario: Scenario,
+    loader: LevelLoader | None = None,
+    levels: list[TriMesh] | None = None,
+    warnings: list[str] | None = None,
+) -> Problem:
     """Load the model (unless ``levels`` are given), fit the lattice, apply moves and pins."""
     if levels is None:
         levels, warnings = model_levels(scenario, loader)

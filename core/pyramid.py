@@ -109,8 +109,7 @@ class _BodyCheck:
         """Why ``cand`` is not a good level of this body, or None."""
         report = EdgeReport.of(cand.faces, cand.n_vertices)
         if report.boundary or report.unbalanced:
-            return (f"not closed ({report.boundary} boundary, {report.unbalanced} "
-                    "unbalanced edges)")
+            return f"not closed ({report.boundary} boundary, {report.unbalanced} unbalanced edges)"
         if np.any(cand.vertices < self.lo) or np.any(cand.vertices > self.hi):
             return "a vertex far outside the model's bounding box"
         v = signed_volume(cand.vertices, cand.faces)
@@ -120,8 +119,9 @@ class _BodyCheck:
         return None
 
 
-def _coarser(bodies: list[TriMesh], checks: list[_BodyCheck], ratio: float,
-             notes: list[str] | None) -> list[TriMesh] | None:
+def _coarser(
+    bodies: list[TriMesh], checks: list[_BodyCheck], ratio: float, notes: list[str] | None
+) -> list[TriMesh] | None:
     """The next coarser level, body by body, or None when a body cannot be simplified."""
     out = []
     for body, check in zip(bodies, checks):

@@ -38,9 +38,7 @@ NESTING_BUDGET = 50_000_000
 
 
 # -- cleaning ---------------------------------------------------------------------------------
-def clean_closed_surface(
-    vertices: np.ndarray, faces: np.ndarray
-) -> tuple[TriMesh, list[str], int]:
+def clean_closed_surface(vertices: np.ndarray, faces: np.ndarray) -> tuple[TriMesh, list[str], int]:
     """Weld, drop degenerate and duplicate triangles, check closed, orient outward.
 
     Parameters
@@ -70,17 +68,24 @@ def clean_closed_surface(
     vertices, faces = compact(vertices, faces)
     report = EdgeReport.of(faces, len(vertices))
     if report.boundary or report.non_manifold:
-        raise IsochorError(f"the surface is not closed: {report.describe()}; Isochor needs a "
-                           "closed surface (a solid) to measure a volume")
+        raise IsochorError(
+            f"the surface is not closed: {report.describe()}; Isochor needs a "
+            "closed surface (a solid) to measure a volume"
+        )
     faces, n_flipped = fix_winding(faces, report)
     if n_flipped:
-        warns.append(f"Inconsistent winding repaired: {n_flipped} triangle(s) flipped to "
-                     "match their neighbours.")
+        warns.append(
+            f"Inconsistent winding repaired: {n_flipped} triangle(s) flipped to "
+            "match their neighbours."
+        )
     labels, n_bodies = body_labels(faces, report)
     faces, inward = orient_bodies(vertices, faces, labels, n_bodies)
     if inward:
-        what = ("The surface faced inward (negative volume)" if n_bodies == 1 else
-                f"{inward} of {n_bodies} bodies faced the wrong way")
+        what = (
+            "The surface faced inward (negative volume)"
+            if n_bodies == 1
+            else f"{inward} of {n_bodies} bodies faced the wrong way"
+        )
         warns.append(f"{what}; flipped to face outward.")
     volume = signed_volume(vertices, faces)
     if not volume > 1e-12 * np.ptp(vertices, axis=0).max() ** 3:
@@ -88,8 +93,9 @@ def clean_closed_surface(
     return TriMesh(vertices, faces), warns, n_bodies
 
 
-def weld(vertices: np.ndarray, faces: np.ndarray,
-         tolerance: float = WELD_TOLERANCE) -> tuple[np.ndarray, np.ndarray]:
+def weld(
+    vertices: np.ndarray, faces: np.ndarray, tolerance: float = WELD_TOLERANCE
+) -> tuple[np.ndarray, np.ndarray]:
     """Merge vertices closer than ``tolerance`` times the model size (per coordinate grid).
 
     Keeps the first vertex of each group and the file's vertex order (a model with nothing
@@ -117,8 +123,7 @@ def drop_degenerate(faces: np.ndarray) -> tuple[np.ndarray, int]:
     Zero-area triangles with three distinct corners stay: they are part of the surface's
     connectivity and add nothing to its volume.
     """
-    bad = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (
-        faces[:, 2] == faces[:, 0])
+    bad = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
     return faces[~bad], int(bad.sum())
 
 
@@ -219,8 +224,9 @@ class EdgeReport:
     def describe(self) -> str:
         parts = [f"{self.boundary} boundary edge(s) (holes)"]
         if self.non_manifold:
-            parts.append(f"{self.non_manifold} non-manifold edge(s) (shared by more than two "
-                         "triangles)")
+            parts.append(
+                f"{self.non_manifold} non-manifold edge(s) (shared by more than two triangles)"
+            )
         return " and ".join(parts)
 
 
@@ -244,8 +250,9 @@ def body_labels(faces: np.ndarray, report: EdgeReport | None = None) -> tuple[np
     on_edge = np.repeat(np.arange(len(faces)), 3)[order]
     same = edges[order][1:] == edges[order][:-1]  # neighbours in this order share an edge
     n = len(faces)
-    graph = sp.coo_matrix((np.ones(int(same.sum())), (on_edge[:-1][same], on_edge[1:][same])),
-                          shape=(n, n))
+    graph = sp.coo_matrix(
+        (np.ones(int(same.sum())), (on_edge[:-1][same], on_edge[1:][same])), shape=(n, n)
+    )
     count, labels = connected_components(graph, directed=False)
     return labels, int(count)
 
@@ -294,8 +301,9 @@ def fix_winding(faces: np.ndarray, report: EdgeReport) -> tuple[np.ndarray, int]
     return out, int(flip.sum())
 
 
-def orient_bodies(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray,
-                  n_bodies: int) -> tuple[np.ndarray, int]:
+def orient_bodies(
+    vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray, n_bodies: int
+) -> tuple[np.ndarray, int]:
     """Turn every body so that the total signed volume is the solid's volume.
 
     A body inside an even number of others (usually none) faces outward; one inside an odd
@@ -316,8 +324,9 @@ def orient_bodies(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray,
     return out, int(flip_body.sum())
 
 
-def nesting_depth(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray,
-                  n_bodies: int) -> np.ndarray:
+def nesting_depth(
+    vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray, n_bodies: int
+) -> np.ndarray:
     """(bodies,) how many other bodies contain each body (by the winding number of one
     triangle centre of the body). Zero everywhere when the test would be too costly."""
     depth = np.zeros(n_bodies, dtype=np.int64)
@@ -338,7 +347,7 @@ def nesting_depth(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray,
     starts = np.concatenate([[0], np.cumsum(counts)])
     for a in np.unique(pairs[:, 1]):
         inner = pairs[pairs[:, 1] == a, 0]
-        body = tri[order[starts[a]:starts[a + 1]]]
+        body = tri[order[starts[a] : starts[a + 1]]]
         w = winding_numbers(probe[inner], body)
         depth[inner[np.abs(w) > 0.5]] += 1
     return depth
@@ -361,7 +370,11 @@ def winding_numbers(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
         a, b, c = (triangles[:, k] - p for k in range(3))
         la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
         num = np.einsum("ij,ij->i", a, np.cross(b, c))
-        den = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc
-               + np.einsum("ij,ij->i", a, c) * lb + np.einsum("ij,ij->i", b, c) * la)
+        den = (
+            la * lb * lc
+            + np.einsum("ij,ij->i", a, b) * lc
+            + np.einsum("ij,ij->i", a, c) * lb
+            + np.einsum("ij,ij->i", b, c) * la
+        )
         out[i] = np.sum(np.arctan2(num, den)) / (2 * np.pi)
     return out

@@ -69,8 +69,21 @@ class Scenario:
     # -- JSON ---------------------------------------------------------------------------
     @classmethod
     def from_dict(cls, doc: Any, base_dir: str | Path | None = None) -> Scenario:
-        _check_keys(doc, "scenario", {"format", "version", "model", "lattice", "moves", "pins",
-                                      "target_volume_ratio", "tolerance"}, {"model"})
+        _check_keys(
+            doc,
+            "scenario",
+            {
+                "format",
+                "version",
+                "model",
+                "lattice",
+                "moves",
+                "pins",
+                "target_volume_ratio",
+                "tolerance",
+            },
+            {"model"},
+        )
         if doc.get("format", FORMAT) != FORMAT:
             raise IsochorError(f"format: expected {FORMAT!r}, got {doc.get('format')!r}")
         version = doc.get("version", VERSION)
@@ -101,8 +114,10 @@ class Scenario:
             axes = fr["axes"]
             if not isinstance(axes, list) or len(axes) != 3:
                 raise IsochorError("lattice.frame.axes: must be three [x, y, z] edge vectors")
-            frame = (_vec(fr["origin"], "lattice.frame.origin"),
-                     tuple(_vec(a, f"lattice.frame.axes[{n}]") for n, a in enumerate(axes)))
+            frame = (
+                _vec(fr["origin"], "lattice.frame.origin"),
+                tuple(_vec(a, f"lattice.frame.axes[{n}]") for n, a in enumerate(axes)),
+            )
         moves = []
         for n, mv in enumerate(_list(doc.get("moves", []), "moves")):
             where = f"moves[{n}]"
@@ -116,8 +131,9 @@ class Scenario:
                 moves.append(Move(node, by=_vec(mv["by"], f"{where}.by")))
             else:
                 moves.append(Move(node, to=_vec(mv["to"], f"{where}.to")))
-        pins = tuple(_node(p, f"pins[{n}]", shape)
-                     for n, p in enumerate(_list(doc.get("pins", []), "pins")))
+        pins = tuple(
+            _node(p, f"pins[{n}]", shape) for n, p in enumerate(_list(doc.get("pins", []), "pins"))
+        )
         ratio = _number(doc.get("target_volume_ratio", 1.0), "target_volume_ratio")
         if not ratio > 0:
             raise IsochorError("target_volume_ratio: must be positive")
@@ -127,16 +143,28 @@ class Scenario:
         tn = _number(tol.get("nodes", TOL_NODES), "tolerance.nodes")
         if not (0 < tv < 1 and 0 < tn < 1):
             raise IsochorError("tolerance: volume and nodes must be between 0 and 1")
-        return cls(dict(model), shape, padding, frame, tuple(moves), pins, ratio, tv, tn,
-                   Path(base_dir) if base_dir is not None else None)
+        return cls(
+            dict(model),
+            shape,
+            padding,
+            frame,
+            tuple(moves),
+            pins,
+            ratio,
+            tv,
+            tn,
+            Path(base_dir) if base_dir is not None else None,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         lattice: dict[str, Any] = {"nodes": list(self.lattice_nodes)}
         if self.frame is None:
             lattice["padding"] = self.padding
         else:
-            lattice["frame"] = {"origin": list(self.frame[0]),
-                                "axes": [list(a) for a in self.frame[1]]}
+            lattice["frame"] = {
+                "origin": list(self.frame[0]),
+                "axes": [list(a) for a in self.frame[1]],
+            }
         moves = []
         for mv in self.moves:
             d: dict[str, Any] = {"node": list(mv.node)}
@@ -242,8 +270,10 @@ def _vec(obj: Any, where: str) -> tuple[float, float, float]:
 
 
 def _int_triple(obj: Any, where: str) -> tuple[int, int, int]:
-    if not isinstance(obj, list) or len(obj) != 3 or not all(
-        isinstance(x, int) and not isinstance(x, bool) for x in obj
+    if (
+        not isinstance(obj, list)
+        or len(obj) != 3
+        or not all(isinstance(x, int) and not isinstance(x, bool) for x in obj)
     ):
         raise IsochorError(f"{where}: must be a list of three whole numbers")
     return tuple(obj)

@@ -42,11 +42,15 @@ def torus(nu: int, nv: int, major: float = 1.0, minor: float = 0.4) -> TriMesh:
     for a in range(nu):
         for b in range(nv):
             if a % 2 == 0:  # ring a+1 is shifted by +1/2 relative to ring a
-                faces += [(idx(a, b), idx(a + 1, b), idx(a, b + 1)),
-                          (idx(a, b + 1), idx(a + 1, b), idx(a + 1, b + 1))]
+                faces += [
+                    (idx(a, b), idx(a + 1, b), idx(a, b + 1)),
+                    (idx(a, b + 1), idx(a + 1, b), idx(a + 1, b + 1)),
+                ]
             else:  # ring a is shifted by +1/2 relative to ring a+1
-                faces += [(idx(a, b), idx(a + 1, b + 1), idx(a, b + 1)),
-                          (idx(a, b), idx(a + 1, b), idx(a + 1, b + 1))]
+                faces += [
+                    (idx(a, b), idx(a + 1, b + 1), idx(a, b + 1)),
+                    (idx(a, b), idx(a + 1, b), idx(a + 1, b + 1)),
+                ]
     return _outward(TriMesh(verts, np.array(faces)))
 
 
@@ -61,13 +65,46 @@ def torus_volume(major: float = 1.0, minor: float = 0.4) -> float:
 
 _ICO_T = (1 + 5**0.5) / 2
 _ICO_V = np.array(
-    [(-1, _ICO_T, 0), (1, _ICO_T, 0), (-1, -_ICO_T, 0), (1, -_ICO_T, 0),
-     (0, -1, _ICO_T), (0, 1, _ICO_T), (0, -1, -_ICO_T), (0, 1, -_ICO_T),
-     (_ICO_T, 0, -1), (_ICO_T, 0, 1), (-_ICO_T, 0, -1), (-_ICO_T, 0, 1)], dtype=float)
+    [
+        (-1, _ICO_T, 0),
+        (1, _ICO_T, 0),
+        (-1, -_ICO_T, 0),
+        (1, -_ICO_T, 0),
+        (0, -1, _ICO_T),
+        (0, 1, _ICO_T),
+        (0, -1, -_ICO_T),
+        (0, 1, -_ICO_T),
+        (_ICO_T, 0, -1),
+        (_ICO_T, 0, 1),
+        (-_ICO_T, 0, -1),
+        (-_ICO_T, 0, 1),
+    ],
+    dtype=float,
+)
 _ICO_F = np.array(
-    [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4),
-     (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8),
-     (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)])
+    [
+        (0, 11, 5),
+        (0, 5, 1),
+        (0, 1, 7),
+        (0, 7, 10),
+        (0, 10, 11),
+        (1, 5, 9),
+        (5, 11, 4),
+        (11, 10, 2),
+        (10, 7, 6),
+        (7, 1, 8),
+        (3, 9, 4),
+        (3, 4, 2),
+        (3, 2, 6),
+        (3, 6, 8),
+        (3, 8, 9),
+        (4, 9, 5),
+        (2, 4, 11),
+        (6, 2, 10),
+        (8, 6, 7),
+        (9, 8, 1),
+    ]
+)
 
 
 def _subdivide(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -78,8 +115,9 @@ def _subdivide(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nda
     verts = np.concatenate([verts, (verts[uniq[:, 0]] + verts[uniq[:, 1]]) / 2])
     a, b, c = faces.T
     ab, bc, ca = mid.T
-    faces = np.concatenate([np.stack(t, 1) for t in
-                            [(a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca)]])
+    faces = np.concatenate(
+        [np.stack(t, 1) for t in [(a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca)]]
+    )
     return verts, faces
 
 
@@ -114,8 +152,10 @@ def club_lattice() -> tuple[Lattice, np.ndarray]:
 def club_levels(n_levels: int = 6) -> list[TriMesh]:
     """The rounded club sampled like the sphere: 20, 80, 320, ... triangles."""
     lattice, nodes = club_lattice()
-    return [_outward(TriMesh(lattice.deform(m.vertices, nodes), m.faces))
-            for m in sphere_levels(n_levels)]
+    return [
+        _outward(TriMesh(lattice.deform(m.vertices, nodes), m.faces))
+        for m in sphere_levels(n_levels)
+    ]
 
 
 def _outward(mesh: TriMesh) -> TriMesh:

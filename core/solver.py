@@ -117,7 +117,13 @@ def lbfgs(
             with warnings.catch_warnings():
                 warnings.filterwarnings("ignore", "The line search algorithm")
                 alpha, *_ = line_search(
-                    lambda z: evaluate(z)[0], lambda z: evaluate(z)[1], x, d, g, f, f_old,
+                    lambda z: evaluate(z)[0],
+                    lambda z: evaluate(z)[1],
+                    x,
+                    d,
+                    g,
+                    f,
+                    f_old,
                     maxiter=30,
                 )
         if alpha is None:  # Wolfe search failed: backtrack on sufficient decrease only

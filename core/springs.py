@@ -29,7 +29,9 @@ def lattice_springs(shape: tuple[int, int, int]) -> np.ndarray:
         src = idx[
             max(0, -di) : l - max(0, di), max(0, -dj) : m - max(0, dj), max(0, -dk) : n - max(0, dk)
         ]
-        dst = idx[max(0, di) : l + min(0, di), max(0, dj) : m + min(0, dj), max(0, dk) : n + min(0, dk)]
+        dst = idx[
+            max(0, di) : l + min(0, di), max(0, dj) : m + min(0, dj), max(0, dk) : n + min(0, dk)
+        ]
         pairs.append(np.stack([src.ravel(), dst.ravel()], axis=1))
     return np.concatenate(pairs)
 
@@ -53,8 +55,10 @@ class SpringNetwork:
         # spring forces onto the nodes in one sparse product.
         s = len(self.edges)
         self._incidence_t = sp.csr_matrix(
-            (np.r_[np.ones(s), -np.ones(s)],
-             (np.r_[self.edges[:, 1], self.edges[:, 0]], np.r_[np.arange(s), np.arange(s)])),
+            (
+                np.r_[np.ones(s), -np.ones(s)],
+                (np.r_[self.edges[:, 1], self.edges[:, 0]], np.r_[np.arange(s), np.arange(s)]),
+            ),
             shape=(self.n_nodes, s),
         )
 

@@ -83,8 +83,10 @@ def uv_sphere(n_lat: int = 32, n_lon: int = 64, radius: float = 1.0) -> TriMesh:
     faces = [(0, idx(0, j), idx(0, j + 1)) for j in range(n_lon)]
     for i in range(n_lat - 2):
         for j in range(n_lon):
-            faces += [(idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)),
-                      (idx(i, j), idx(i + 1, j + 1), idx(i, j + 1))]
+            faces += [
+                (idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)),
+                (idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)),
+            ]
     faces += [(south, idx(n_lat - 2, j + 1), idx(n_lat - 2, j)) for j in range(n_lon)]
     return TriMesh(verts, np.array(faces))
 
@@ -92,5 +94,7 @@ def uv_sphere(n_lat: int = 32, n_lon: int = 64, radius: float = 1.0) -> TriMesh:
 def joined(*meshes: TriMesh) -> TriMesh:
     """One mesh holding all the given meshes as separate bodies."""
     offsets = np.cumsum([0] + [m.n_vertices for m in meshes[:-1]])
-    return TriMesh(np.concatenate([m.vertices for m in meshes]),
-                   np.concatenate([m.faces + o for m, o in zip(meshes, offsets)]))
+    return TriMesh(
+        np.concatenate([m.vertices for m in meshes]),
+        np.concatenate([m.faces + o for m, o in zip(meshes, offsets)]),
+    )

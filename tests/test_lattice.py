@@ -48,7 +48,11 @@ def test_deform_matches_explicit_triple_sum_for_a_skewed_frame():
     expected = np.zeros((7, 3))
     for r in range(lat.n_nodes):
         i, j, k = lat.ijk(r)
-        w = bernstein(2, uvw[:, 0])[:, i] * bernstein(3, uvw[:, 1])[:, j] * bernstein(1, uvw[:, 2])[:, k]
+        w = (
+            bernstein(2, uvw[:, 0])[:, i]
+            * bernstein(3, uvw[:, 1])[:, j]
+            * bernstein(1, uvw[:, 2])[:, k]
+        )
         expected += w[:, None] * nodes[r]
     assert np.allclose(lat.deform(pts, nodes), expected, atol=1e-12)
 

@@ -175,10 +175,12 @@ def test_weld_is_relative_to_the_model_size(tmp_path):
 def test_non_orientable_surface_is_refused():
     # a Klein bottle grid: closed, every edge on two triangles, no consistent winding
     n, m = 8, 6
+
     def vid(i, j):
         if i == n:
             i, j = 0, (m - j) % m
         return i * m + (j % m)
+
     faces = []
     for i in range(n):
         for j in range(m):
@@ -218,7 +220,7 @@ def _bad_files(tmp_path):
         "badindex.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
         "nan.obj": b"v 0 0 0\nv nan 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n",
         "points.ply": b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"
-                      b"property float y\nproperty float z\nend_header\n0 0 0\n1 1 1\n",
+        b"property float y\nproperty float z\nend_header\n0 0 0\n1 1 1\n",
         "model.xyz": b"0 0 0\n",
         "model.glb": b"glTF",
         "noextension": b"v 0 0 0\n",

@@ -10,8 +10,8 @@ import pytest
 import isochor.core.pyramid
 from isochor.core.mesh import TriMesh
 from isochor.core.meshio import load_mesh
-from isochor.core.repair import EdgeReport, count_bodies
 from isochor.core.pyramid import MAX_OUTSIDE, build_pyramid, volume_tolerance
+from isochor.core.repair import EdgeReport, count_bodies
 from isochor.core.volume import signed_volume
 from tests.models import CLOSED, club, icosphere, joined, model, uv_sphere
 
@@ -55,8 +55,11 @@ def test_cow_pyramid_like_the_paper():
     assert counts[-1] == 5804 and len(counts) == 5 and counts[0] < 64
 
 
-@pytest.mark.parametrize("make", [lambda: icosphere(5), lambda: club(5), lambda: uv_sphere(48, 96)],
-                         ids=["icosphere", "club", "uv-sphere"])
+@pytest.mark.parametrize(
+    "make",
+    [lambda: icosphere(5), lambda: club(5), lambda: uv_sphere(48, 96)],
+    ids=["icosphere", "club", "uv-sphere"],
+)
 def test_pyramids_of_synthetic_shapes(make):
     mesh = make()
     levels = build_pyramid(mesh)

@@ -25,8 +25,10 @@ GOOD = {
     "version": 1,
     "model": {"path": "club.ply"},
     "lattice": {"nodes": [5, 2, 2], "padding": 0.05},
-    "moves": [{"node": [0, 0, 0], "by": [0.0, 0.3, 0.0]},
-              {"node": [4, 1, 1], "to": [3.2, 0.9, 0.8]}],
+    "moves": [
+        {"node": [0, 0, 0], "by": [0.0, 0.3, 0.0]},
+        {"node": [4, 1, 1], "to": [3.2, 0.9, 0.8]},
+    ],
     "pins": [[2, 0, 0]],
     "target_volume_ratio": 1.0,
     "tolerance": {"volume": 0.0005, "nodes": 0.001},
@@ -67,8 +69,15 @@ def drive(gen):
 
 def solve_scenario(scenario: Scenario):
     problem = build(scenario)
-    return drive(solve(problem.surface, problem.nodes, problem.fixed,
-                       target_ratio=scenario.target_volume_ratio, options=problem.options))
+    return drive(
+        solve(
+            problem.surface,
+            problem.nodes,
+            problem.fixed,
+            target_ratio=scenario.target_volume_ratio,
+            options=problem.options,
+        )
+    )
 
 
 @pytest.fixture(scope="module")
@@ -158,8 +167,7 @@ def test_read_errors_name_the_file(tmp_path):
         Scenario.read(bad)
 
 
-def test_relative_model_paths_are_relative_to_the_scenario_file(tmp_path, club_file,
-                                                                 monkeypatch):
+def test_relative_model_paths_are_relative_to_the_scenario_file(tmp_path, club_file, monkeypatch):
     (tmp_path / "scenes" / "deep").mkdir(parents=True)
     (tmp_path / "assets").mkdir()
     target = tmp_path / "assets" / "club.ply"
@@ -198,9 +206,13 @@ def test_write_read_round_trip(tmp_path, name):
 
 
 def test_frame_lattice_round_trip(tmp_path):
-    doc = changed("lattice", {"nodes": [3, 3, 3],
-                              "frame": {"origin": [-2, -1, -1], "axes": [[4, 0, 0], [0, 2, 0],
-                                                                         [0, 0, 2]]}})
+    doc = changed(
+        "lattice",
+        {
+            "nodes": [3, 3, 3],
+            "frame": {"origin": [-2, -1, -1], "axes": [[4, 0, 0], [0, 2, 0], [0, 0, 2]]},
+        },
+    )
     sc = Scenario.from_dict(changed("moves", [], doc) | {"pins": []})
     sc.write(tmp_path / "f.json")
     back = Scenario.read(tmp_path / "f.json")

@@ -8,8 +8,8 @@ import pytest
 from isochor.core.errors import IsochorError
 from isochor.core.examples import example_scenario
 from isochor.core.lattice import Lattice
-from isochor.core.multilevel import EmbeddedSurface, solve
 from isochor.core.mesh import TriMesh
+from isochor.core.multilevel import EmbeddedSurface, solve
 from isochor.core.problem import build
 from isochor.core.shapes import sphere_levels, torus_levels
 from isochor.core.solver import LevelProblem, SolverOptions
@@ -30,8 +30,9 @@ def run(gen):
 def compression():
     problem = build(example_scenario("torus-compression"))
     paper_schedule = SolverOptions(start_triangles=0)  # from 16 triangles, as in Table 2
-    records, result = run(solve(problem.surface, problem.nodes, problem.fixed,
-                                options=paper_schedule))
+    records, result = run(
+        solve(problem.surface, problem.nodes, problem.fixed, options=paper_schedule)
+    )
     return problem, records, result
 
 
@@ -46,9 +47,16 @@ def test_augmented_lagrangian_gradient_matches_central_differences():
     surface = EmbeddedSurface(lat, levels)
     free = rng.uniform(size=lat.n_nodes) < 0.5
     nodes = lat.rest_nodes + rng.normal(scale=0.1, size=(lat.n_nodes, 3))
-    prob = LevelProblem(nodes, free, surface.springs.energy_and_gradient,
-                        surface.level(-1).volume_and_gradient, surface.center, surface.size,
-                        0.9 * surface.rest_volume, surface.rest_volume)
+    prob = LevelProblem(
+        nodes,
+        free,
+        surface.springs.energy_and_gradient,
+        surface.level(-1).volume_and_gradient,
+        surface.center,
+        surface.size,
+        0.9 * surface.rest_volume,
+        surface.rest_volume,
+    )
     fun = prob.lagrangian(lam=0.7, sigma=30.0)
     y = prob.to_y(nodes)
     _, grad, _ = fun(y)
@@ -64,6 +72,7 @@ def test_torus_compression_restores_volume_and_bulges_symmetrically(compression)
     # measured independently on the full mesh
     full = problem.surface.full
     from isochor.core.volume import signed_volume
+
     v = signed_volume(problem.surface.deform(result.nodes), full.faces)
     assert abs(v / signed_volume(full.vertices, full.faces) - 1) <= 5e-4
     # the fixed layers did not move; the middle layer moved outward in x-y only
@@ -134,6 +143,7 @@ def test_torus_stretch_centre_layer_contracts_sideways():
     lat = problem.surface.lattice
     mid = _layer(lat, 0, 2)
     assert np.array_equal(mid, ~problem.fixed)
+
     # the cross-section spanned by the 2x2 centre nodes (y-z plane) shrinks: the nodes move
     # across towards the diagonal sides, as in the paper's Plate 2. (The exactly symmetric
     # configuration is a saddle; the solver's start nudge finds a lower asymmetric minimum,

@@ -9,10 +9,26 @@ from isochor.core.shapes import sphere_levels, sphere_volume, torus_levels, toru
 from isochor.core.volume import VolumeOperator, signed_volume
 from tests.numdiff import central_gradient
 
-CUBE_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
-                   [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], dtype=float)
-CUBE_F = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
-                   [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+CUBE_V = np.array(
+    [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]],
+    dtype=float,
+)
+CUBE_F = np.array(
+    [
+        [0, 2, 1],
+        [0, 3, 2],
+        [4, 5, 6],
+        [4, 6, 7],
+        [0, 1, 5],
+        [0, 5, 4],
+        [1, 2, 6],
+        [1, 6, 5],
+        [2, 3, 7],
+        [2, 7, 6],
+        [3, 0, 4],
+        [3, 4, 7],
+    ]
+)
 
 
 def test_cube_volume_is_exact_anywhere_and_sign_follows_winding():
@@ -73,8 +89,13 @@ def test_builtin_shape_parameters_are_checked():
     from isochor.core.shapes import builtin_levels
 
     assert [m.n_faces for m in builtin_levels("torus", n_levels=2)] == [16, 64]
-    for bad in ({"n_levels": 14}, {"n_levels": 0}, {"n_levels": 2.5}, {"minor": "x"},
-                {"major": -1.0}):
+    for bad in (
+        {"n_levels": 14},
+        {"n_levels": 0},
+        {"n_levels": 2.5},
+        {"minor": "x"},
+        {"major": -1.0},
+    ):
         with pytest.raises(IsochorError, match="model."):
             builtin_levels("torus", **bad)
     with pytest.raises(IsochorError, match="Unknown built-in shape"):

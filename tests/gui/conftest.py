@@ -29,8 +29,9 @@ except ImportError as exc:  # pragma: no cover - depends on the environment
 def _display_problem() -> str | None:
     if _IMPORT_PROBLEM:
         return _IMPORT_PROBLEM
-    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
-                                                 or os.environ.get("WAYLAND_DISPLAY")):
+    if sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    ):
         return "no display: install Xvfb and pytest-xvfb, or run under xvfb-run"
     return None
 
@@ -56,7 +57,7 @@ def themed_app(qapp):
 def wait_idle(qtbot, win, timeout=60_000):
     """Wait until the window's solve ended and its last frame was drawn."""
     qtbot.waitUntil(lambda: not win.is_solving(), timeout=timeout)
-    qtbot.waitUntil(lambda: win.session._pending is None, timeout=5_000)  # noqa: SLF001
+    qtbot.waitUntil(lambda: win.session._pending is None, timeout=5_000)
 
 
 def open_window(qtbot, doc=None, size=(1100, 760)):

@@ -55,15 +55,15 @@ def test_axis_lock_and_escape_during_a_drag(qtbot, window):
     row = pickable_node(win, want_free=True)
     before = np.array(win.state.nodes)
     start = screen_positions(win)[0][row]
-    QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                     point(start))
+    QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(start))
     QTest.mouseMove(vp, point(start + (10, -10)))
     assert vp.dragging
     QTest.keyClick(vp, Qt.Key.Key_Z)  # lock to the world z axis
     for i in range(1, 6):
         QTest.mouseMove(vp, point(start + (10 + 8 * i, -10 - 12 * i)))
-    QTest.mouseRelease(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                       point(start + (50, -70)))
+    QTest.mouseRelease(
+        vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(start + (50, -70))
+    )
     moved = win.session.last_solve_input[0][row] - before[row]
     assert abs(moved[2]) > 1e-3 * win.state.surface.size
     assert np.allclose(moved[:2], 0, atol=1e-12), "locked to z"
@@ -72,14 +72,14 @@ def test_axis_lock_and_escape_during_a_drag(qtbot, window):
     # Shift+Z: the plane across z (z stays)
     before = np.array(win.state.nodes)
     start = screen_positions(win)[0][row]
-    QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                     point(start))
+    QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(start))
     QTest.mouseMove(vp, point(start + (5, 5)))
     QTest.keyClick(vp, Qt.Key.Key_Z, Qt.KeyboardModifier.ShiftModifier)
     for i in range(1, 6):
         QTest.mouseMove(vp, point(start + (5 + 10 * i, 5 + 6 * i)))
-    QTest.mouseRelease(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                       point(start + (55, 35)))
+    QTest.mouseRelease(
+        vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(start + (55, 35))
+    )
     moved = win.session.last_solve_input[0][row] - before[row]
     assert abs(moved[2]) < 1e-9 and np.abs(moved[:2]).max() > 1e-3
     wait_idle(qtbot, win)
@@ -88,14 +88,14 @@ def test_axis_lock_and_escape_during_a_drag(qtbot, window):
     count = win.undo_stack.count()
     before = np.array(win.state.nodes)
     start = screen_positions(win)[0][row]
-    QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                     point(start))
+    QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(start))
     for i in range(1, 6):
         QTest.mouseMove(vp, point(start + (12 * i, 9 * i)))
     qtbot.waitUntil(lambda: not np.array_equal(win.viewport.nodes, before), timeout=2000)
     QTest.keyClick(vp, Qt.Key.Key_Escape)
-    QTest.mouseRelease(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                       point(start + (60, 45)))
+    QTest.mouseRelease(
+        vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(start + (60, 45))
+    )
     wait_idle(qtbot, win)
     assert win.undo_stack.count() == count
     assert np.array_equal(win.state.nodes, before)
@@ -113,16 +113,16 @@ def test_live_drag_solves_while_the_mouse_moves(qtbot, window):
     row = pickable_node(win, want_free=True)
     gen0 = win.worker.generation
     start = screen_positions(win)[0][row]
-    QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                     point(start))
+    QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(start))
     for i in range(1, 13):
         QTest.mouseMove(vp, point(start + (6 * i, -4 * i)))
         qtbot.wait(60)
     during = win.worker.generation - gen0
     assert during >= 2, "the preview solve restarts as the mouse moves"
     assert win.undo_stack.count() == 0
-    QTest.mouseRelease(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                       point(start + (72, -48)))
+    QTest.mouseRelease(
+        vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(start + (72, -48))
+    )
     assert win.undo_stack.count() == 1
     wait_idle(qtbot, win)
     assert win.state.solved and win.state.converged and win.state.moved[row]
@@ -137,8 +137,7 @@ def test_preserve_off_is_plain_ffd(qtbot, window):
     rest = win.state.lattice.rest_nodes
     fixed = win.state.fixed
     shown = win.viewport.nodes
-    assert np.allclose(shown[~fixed], rest[~fixed]) and np.allclose(shown[fixed],
-                                                                     solved[fixed])
+    assert np.allclose(shown[~fixed], rest[~fixed]) and np.allclose(shown[fixed], solved[fixed])
     vol_plain = win.viewport.model_volume / win.state.surface.rest_volume
     assert vol_plain < 0.9, "the squashed torus loses volume without the constraint"
 
@@ -194,7 +193,7 @@ def test_save_reopen_and_export(qtbot, window, tmp_path):
     wait_idle(qtbot, win)
     assert "*" in win.windowTitle()
     path = tmp_path / "edit.json"
-    assert win.files.save_to(path)  # noqa: SLF001 (the file dialog is the only other step)
+    assert win.files.save_to(path)
     assert "*" not in win.windowTitle() and win.undo_stack.isClean()
     sc = Scenario.read(path)
     assert len(sc.moves) == 19  # the example's 18 and the dragged node
@@ -248,8 +247,11 @@ def test_a_solver_failure_shows_the_message_and_keeps_the_edit(qtbot, window, mo
 
     win = window
     shown = []
-    monkeypatch.setattr(QMessageBox, "critical",
-                        staticmethod(lambda parent, title, text, *a, **k: shown.append(text)))
+    monkeypatch.setattr(
+        QMessageBox,
+        "critical",
+        staticmethod(lambda parent, title, text, *a, **k: shown.append(text)),
+    )
 
     def broken(*args, **kwargs):
         raise IsochorError("The free nodes cannot change the model's volume.")
@@ -280,8 +282,11 @@ def test_shortcut_keys_reach_the_actions(qtbot, window):
     wait_idle(qtbot, win)
     QTest.keyClick(win.viewport, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier)
     assert not win.state.pinned[row], "Ctrl+Z undoes"
-    QTest.keyClick(win.viewport, Qt.Key.Key_Z,
-                   Qt.KeyboardModifier.ControlModifier | Qt.KeyboardModifier.ShiftModifier)
+    QTest.keyClick(
+        win.viewport,
+        Qt.Key.Key_Z,
+        Qt.KeyboardModifier.ControlModifier | Qt.KeyboardModifier.ShiftModifier,
+    )
     assert win.state.pinned[row], "Ctrl+Shift+Z redoes"
     # typing digits in a number field is typing, not the "7: top view" shortcut
     win.panel.target.setFocus()
@@ -294,6 +299,7 @@ def test_shortcut_keys_reach_the_actions(qtbot, window):
 def test_context_menu_pins_the_node_under_the_cursor(qtbot, window, monkeypatch):
     from PySide6.QtCore import Qt
     from PySide6.QtTest import QTest
+
     win = window
     row = pickable_node(win, want_free=True)
     offered = []
@@ -304,8 +310,12 @@ def test_context_menu_pins_the_node_under_the_cursor(qtbot, window, monkeypatch)
         actions[0].trigger()
 
     monkeypatch.setattr(win, "exec_menu", run_first)  # instead of the blocking popup
-    QTest.mouseClick(win.viewport, Qt.MouseButton.RightButton, Qt.KeyboardModifier.NoModifier,
-                     point(screen_positions(win)[0][row]))
+    QTest.mouseClick(
+        win.viewport,
+        Qt.MouseButton.RightButton,
+        Qt.KeyboardModifier.NoModifier,
+        point(screen_positions(win)[0][row]),
+    )
     assert offered and offered[0] == "Pin 1 node"
     assert list(win.viewport.selection) == [row]
     assert win.state.pinned[row]
@@ -345,10 +355,17 @@ def test_isochor_edit_screenshot_from_the_command_line(tmp_path):
     scenario = tmp_path / "stretch.json"
     example_scenario("torus-stretch").write(scenario)
     out = tmp_path / "shot.png"
-    code = ("import sys; from isochor.app.cli import main; "
-            f"sys.exit(main(['edit', {str(scenario)!r}, '--screenshot', {str(out)!r}]))")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=300, env=dict(os.environ))
+    code = (
+        "import sys; from isochor.app.cli import main; "
+        f"sys.exit(main(['edit', {str(scenario)!r}, '--screenshot', {str(out)!r}]))"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=dict(os.environ),
+    )
     assert proc.returncode == 0, proc.stderr
     img = QImage(str(out))
     assert not img.isNull() and distinct_colours(img) > 100
@@ -356,7 +373,12 @@ def test_isochor_edit_screenshot_from_the_command_line(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     code = code.replace(repr(str(scenario)), repr(str(bad)))
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=300, env=dict(os.environ))
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=dict(os.environ),
+    )
     assert proc.returncode == 1
     assert proc.stderr.count("\n") == 1 and "not valid JSON" in proc.stderr

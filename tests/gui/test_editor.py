@@ -59,8 +59,7 @@ def drag(qtbot, win, row, offset=(70, -45), steps=8, modifier=None):
     for i in range(1, steps + 1):
         QTest.mouseMove(vp, point(start + np.array(offset) * i / steps))
         qtbot.wait(5)
-    QTest.mouseRelease(vp, Qt.MouseButton.LeftButton, mod,
-                       point(start + np.array(offset)))
+    QTest.mouseRelease(vp, Qt.MouseButton.LeftButton, mod, point(start + np.array(offset)))
 
 
 def click(win, row, modifier=None):
@@ -68,8 +67,9 @@ def click(win, row, modifier=None):
     from PySide6.QtTest import QTest
 
     mod = modifier or Qt.KeyboardModifier.NoModifier
-    QTest.mouseClick(win.viewport, Qt.MouseButton.LeftButton, mod,
-                     point(screen_positions(win)[0][row]))
+    QTest.mouseClick(
+        win.viewport, Qt.MouseButton.LeftButton, mod, point(screen_positions(win)[0][row])
+    )
 
 
 # -- tests --------------------------------------------------------------------------------
@@ -215,14 +215,14 @@ def test_two_quick_drags_end_on_the_headless_solve_of_the_last(qtbot, window):
     nodes, fixed, target = win.session.last_solve_input
     assert fixed[r1] and fixed[r2]
     st = win.state
-    headless = run_to_end(solve(st.surface, nodes, fixed, target_ratio=target,
-                                options=st.problem.options))
+    headless = run_to_end(
+        solve(st.surface, nodes, fixed, target_ratio=target, options=st.problem.options)
+    )
     assert np.allclose(win.state.nodes, headless.nodes, rtol=0, atol=1e-9 * st.surface.size)
     assert win.undo_stack.count() == 2
 
 
-def test_opening_a_refused_model_shows_the_error_and_keeps_the_document(
-        qtbot, window, monkeypatch):
+def test_opening_a_refused_model_shows_the_error_and_keeps_the_document(qtbot, window, monkeypatch):
     from PySide6.QtWidgets import QMessageBox
 
     from tests.gui.conftest import MODELS
@@ -233,8 +233,11 @@ def test_opening_a_refused_model_shows_the_error_and_keeps_the_document(
         pytest.skip(f"{teapot} is not there")
     win = window
     shown = []
-    monkeypatch.setattr(QMessageBox, "critical",
-                        staticmethod(lambda parent, title, text, *a, **k: shown.append(text)))
+    monkeypatch.setattr(
+        QMessageBox,
+        "critical",
+        staticmethod(lambda parent, title, text, *a, **k: shown.append(text)),
+    )
     doc, nodes = win.doc, np.array(win.state.nodes)
     assert win.files.open_path(teapot) is False
     assert len(shown) == 1 and "teapot" in shown[0].lower()

@@ -1,0 +1,1016 @@
+"""The editor model (isochor.app.document): its edit rules, selection, drag session, results,
+status words and files. Qt-free, so everything here runs headless."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from isochor.app.document import (
+    DocState,
+    Document,
+    Edit,
+    SolveSummary,
+    StateCell,
+    default_lattice_shape,
+    describe_status,
+    initial_state,
+    plural,
+)
+from isochor.core.errors import IsochorError
+from isochor.core.examples import example_scenario
+from isochor.core.generators import run_to_end
+from isochor.core.mesh import TriMesh
+from isochor.core.meshio import load_mesh, save_mesh
+from isochor.core.multilevel import solve
+from isochor.core.problem import build
+from isochor.core.scenario import Scenario
+from isochor.core.shapes import sphere_levels
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SPHERE = {"model": {"builtin": "sphere", "n_levels": 3}, "lattice": {"nodes": [3, 3, 3]}}
+
+
+# -- fixtures and helpers ------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def torus_problem():
+    """The torus-compression example: 3x3x3, top and bottom layers moved, middle free."""
+    return build(example_scenario("torus-compression"))
+
+
+@pytest.fixture(scope="module")
+def sphere_problem():
+    """A built-in sphere in a 3x3x3 lattice, nothing moved: at rest."""
+    return build(Scenario.from_dict(SPHERE))
+
+
+@pytest.fixture(scope="module")
+def torus_result(torus_problem):
+    prob = torus_problem
+    return run_to_end(solve(prob.surface, prob.nodes, prob.fixed, options=prob.options))
+
+
+@pytest.fixture
+def doc(torus_problem) -> Document:
+    return Document(torus_problem, title="example: torus-compression")
+
+
+@pytest.fixture
+def rest(sphere_problem) -> Document:
+    return Document(sphere_problem)
+
+
+def events_of(document: Document) -> list[str]:
+    events: list[str] = []
+    document.subscribe(events.append)
+    return events
+
+
+def commit(document: Document, edit: Edit) -> StateCell:
+    """What the undo stack does with an edit: a new current cell."""
+    assert edit is not None
+    cell = StateCell(edit.state)
+    document.set_cell(cell)
+    return cell
+
+
+def free_rows(document: Document) -> np.ndarray:
+    return np.flatnonzero(~document.state.fixed)
+
+
+def assert_fresh(edit: Edit) -> None:
+    """An edit's state is a new, unsolved state without a result."""
+    assert isinstance(edit, Edit)
+    assert edit.state.solved is False
+    assert edit.state.result is None
+
+
+def summary(**kw) -> SolveSummary:
+    base = {
+        "converged": True,
+        "levels": (3, 4),
+        "n_levels": 7,
+        "rel_volume_error": -1.234e-5,
+        "free_nodes": 9,
+    }
+    base.update(kw)
+    return SolveSummary(**base)
+
+
+# -- DocState and the initial state ----------------------------------------------------------
+def test_example_document_starts_with_its_moves(torus_problem):
+    d = Document.example()
+    assert d.title == "example: torus-compression"
+    assert d.path is None and d.preserve is True and d.drag is None and d.live_nodes is None
+    st = d.state
+    assert st.lattice.shape == (3, 3, 3)
+    # The top and bottom layers (k = 0, 2) are moved, the middle layer is free.
+    expect = np.array([st.lattice.ijk(r)[2] != 1 for r in range(27)])
+    np.testing.assert_array_equal(st.moved, expect)
+    assert not st.pinned.any()
+    np.testing.assert_array_equal(st.fixed, expect)
+    np.testing.assert_allclose(st.nodes, torus_problem.nodes)
+    assert st.target_ratio == 1.0
+    assert st.solved is False and st.result is None and not st.converged
+    assert d.needs_solve()
+    assert d.selection.tolist() == []
+    assert repr(d.cell) == "StateCell(solved=False)"
+
+
+def test_initial_state_maps_moves_and_pins_to_flags():
+    sc = Scenario.from_dict(
+        {
+            **SPHERE,
+            "moves": [
+                {"node": [0, 0, 0], "by": [0.1, 0.0, 0.0]},
+                {"node": [2, 1, 0], "to": [2.0, 0.0, -1.0]},
+            ],
+            "pins": [[1, 1, 1], [2, 2, 2]],
+            "target_volume_ratio": 1.0,
+        }
+    )
+    prob = build(sc)
+    st = initial_state(prob)
+    lat = st.lattice
+    assert np.flatnonzero(st.moved).tolist() == [lat.index(0, 0, 0), lat.index(2, 1, 0)]
+    assert np.flatnonzero(st.pinned).tolist() == [lat.index(1, 1, 1), lat.index(2, 2, 2)]
+    np.testing.assert_allclose(
+        st.nodes[lat.index(0, 0, 0)], lat.rest_nodes[lat.index(0, 0, 0)] + [0.1, 0, 0]
+    )
+    np.testing.assert_allclose(st.nodes[lat.index(2, 1, 0)], [2.0, 0.0, -1.0])
+    assert st.solved is False and st.result is None
+
+
+def test_initial_state_at_rest_is_solved_without_result(rest):
+    st = rest.state
+    assert rest.title == "built-in sphere"
+    assert not st.moved.any() and not st.pinned.any()
+    np.testing.assert_allclose(st.nodes, st.lattice.rest_nodes)
+    assert st.solved is True and st.result is None and st.converged
+    assert not rest.needs_solve()
+    # Pins alone keep it at rest; a target other than 1 needs a solve.
+    pinned = initial_state(build(Scenario.from_dict({**SPHERE, "pins": [[0, 0, 0]]})))
+    assert pinned.solved is True and pinned.pinned.sum() == 1
+    deflate = initial_state(build(Scenario.from_dict({**SPHERE, "target_volume_ratio": 0.9})))
+    assert deflate.solved is False and deflate.target_ratio == 0.9
+
+
+def test_docstate_arrays_are_read_only_copies(sphere_problem):
+    nodes = sphere_problem.surface.lattice.rest_nodes.copy()
+    pinned = np.zeros(27, bool)
+    st = DocState(sphere_problem, nodes.ravel(), pinned, np.zeros(27, bool))
+    assert st.nodes.shape == (27, 3)
+    nodes[0] = 99.0
+    pinned[0] = True
+    assert st.nodes[0, 0] != 99.0 and not st.pinned[0]
+    for a in (st.nodes, st.pinned, st.moved):
+        assert not a.flags.writeable
+        with pytest.raises(ValueError):
+            a[0] = a[1]
+    assert st.surface is sphere_problem.surface and st.lattice is sphere_problem.surface.lattice
+
+
+def test_docstate_edits_and_same_edit(sphere_problem):
+    st = initial_state(sphere_problem)
+    assert st.solved
+    a = st.moved_to(st.nodes + 0.0, [1, 2])
+    assert a.solved is False and a.result is None
+    assert np.flatnonzero(a.moved).tolist() == [1, 2]
+    b = a.pinned_as([2, 5], True)
+    assert np.flatnonzero(b.pinned).tolist() == [2, 5]
+    np.testing.assert_array_equal(np.flatnonzero(b.fixed), [1, 2, 5])
+    c = b.pinned_as([2], False)  # unpinning also clears the moved flag
+    assert np.flatnonzero(c.moved).tolist() == [1]
+    assert np.flatnonzero(c.pinned).tolist() == [5]
+    assert a.same_edit(st.moved_to(st.nodes + 0.0, [2, 1]))
+    assert not a.same_edit(b)
+    assert not a.same_edit(a.edited(target_ratio=0.5))
+    assert not a.same_edit(a.edited(nodes=a.nodes + 1e-9))
+    assert st.solved and not st.moved.any()  # the original is untouched
+    assert plural(1) == "1 node" and plural(3) == "3 nodes" and plural(0, "pin") == "0 pins"
+
+
+# -- selection -------------------------------------------------------------------------------
+def test_select_replace_add_toggle_and_events(doc):
+    events = events_of(doc)
+    assert doc.select([5, 3, 3]) is True
+    assert doc.selection.tolist() == [3, 5]
+    assert doc.select([3, 5]) is False  # no change, no event
+    assert doc.select([7, 1], "add") is True
+    assert doc.selection.tolist() == [1, 3, 5, 7]
+    assert doc.select([3], "add") is False
+    assert doc.select([3, 4], "toggle") is True
+    assert doc.selection.tolist() == [1, 4, 5, 7]
+    assert doc.select(np.array([2]), "replace") is True
+    assert doc.selection.tolist() == [2]
+    assert doc.select([], "toggle") is False
+    assert doc.select(range(0)) is True
+    assert doc.selection.tolist() == []
+    assert events == ["selection"] * 5
+    assert doc.selection.dtype.kind == "i"
+
+
+def test_select_rejects_rows_outside_the_lattice_and_unknown_modes(doc):
+    doc.select([1])
+    events = events_of(doc)
+    for bad in ([27], [-1], [0, 30]):
+        with pytest.raises(IndexError):
+            doc.select(bad)
+    with pytest.raises(ValueError, match="unknown selection mode"):
+        doc.select([2], "intersect")
+    assert doc.selection.tolist() == [1]
+    assert events == []
+
+
+def test_select_all(doc):
+    events = events_of(doc)
+    assert doc.select_all() is True
+    assert doc.selection.tolist() == list(range(27))
+    assert doc.select_all() is False
+    assert events == ["selection"]
+
+
+# -- edit_position ---------------------------------------------------------------------------
+def test_edit_position_moves_one_node_to_the_typed_value(doc):
+    r = int(free_rows(doc)[0])
+    doc.select([r])
+    before = doc.cell
+    edit = doc.edit_position(1, 0.75)
+    assert_fresh(edit)
+    assert edit.text == "Move 1 node"
+    assert edit.state.nodes[r, 1] == pytest.approx(0.75)
+    expect = np.array(doc.state.nodes)
+    expect[r, 1] = 0.75
+    np.testing.assert_allclose(edit.state.nodes, expect)
+    assert edit.state.moved[r] and edit.state.fixed[r]
+    np.testing.assert_array_equal(
+        np.flatnonzero(edit.state.moved), np.union1d(np.flatnonzero(doc.state.moved), [r])
+    )
+    assert doc.cell is before and not doc.state.moved[r]  # an edit commits nothing itself
+
+
+def test_edit_position_moves_the_centre_of_several_nodes(doc):
+    rows = free_rows(doc)[:3]
+    doc.select(rows)
+    nodes = doc.state.nodes
+    centre = nodes[rows, 0].mean()
+    edit = doc.edit_position(0, centre + 0.4)
+    assert_fresh(edit)
+    assert edit.text == "Move 3 nodes"
+    assert edit.state.nodes[rows, 0].mean() == pytest.approx(centre + 0.4)
+    np.testing.assert_allclose(edit.state.nodes[rows, 0], nodes[rows, 0] + 0.4)
+    np.testing.assert_array_equal(edit.state.nodes[rows, 1:], nodes[rows, 1:])
+    assert edit.state.moved[rows].all()
+    others = np.setdiff1d(np.arange(27), rows)
+    np.testing.assert_array_equal(edit.state.nodes[others], nodes[others])
+
+
+def test_edit_position_without_a_change_is_none(doc):
+    assert doc.edit_position(0, 1.0) is None  # nothing selected
+    r = int(free_rows(doc)[0])
+    doc.select([r])
+    assert doc.edit_position(0, float("nan")) is None
+    assert doc.edit_position(0, float("inf")) is None
+    assert doc.edit_position(2, float(doc.state.nodes[r, 2])) is None  # where it is
+
+
+def test_edit_position_starts_from_the_base_nodes(doc):
+    r = int(free_rows(doc)[0])
+    doc.select([r])
+    live = doc.state.nodes + 0.01
+    doc.live_nodes = live
+    edit = doc.edit_position(0, 2.0)
+    others = np.setdiff1d(np.arange(27), [r])
+    np.testing.assert_allclose(edit.state.nodes[others], live[others])
+    assert edit.state.nodes[r, 0] == pytest.approx(2.0)
+    np.testing.assert_allclose(edit.state.nodes[r, 1:], live[r, 1:])
+    # Preserve off: plain FFD, the free nodes at rest and the live nodes ignored.
+    doc.preserve = False
+    edit = doc.edit_position(0, 2.0)
+    st = doc.state
+    rest = st.lattice.rest_nodes
+    free = np.setdiff1d(free_rows(doc), [r])
+    np.testing.assert_allclose(edit.state.nodes[free], rest[free])
+    np.testing.assert_allclose(edit.state.nodes[st.fixed], st.nodes[st.fixed])
+    np.testing.assert_allclose(edit.state.nodes[r], [2.0, *rest[r, 1:]])
+
+
+# -- edit_pins and edit_toggle_pin -------------------------------------------------------------
+def test_edit_pins_pins_and_unpins(doc):
+    free = free_rows(doc)[:2]
+    edit = doc.edit_pins(free, True)
+    assert_fresh(edit)
+    assert edit.text == "Pin 2 nodes"
+    assert np.flatnonzero(edit.state.pinned).tolist() == free.tolist()
+    np.testing.assert_array_equal(edit.state.moved, doc.state.moved)
+    commit(doc, edit)
+    assert doc.edit_pins(free, True) is None  # pinned already
+    assert doc.edit_pins(free[:1], True) is None
+
+    unpin = doc.edit_pins(free[:1], False)
+    assert_fresh(unpin)
+    assert unpin.text == "Unpin 1 node"
+    assert np.flatnonzero(unpin.state.pinned).tolist() == free[1:].tolist()
+
+    moved = int(np.flatnonzero(doc.state.moved)[0])
+    unpin_moved = doc.edit_pins([moved], False)
+    assert unpin_moved.text == "Unpin 1 node"
+    assert not unpin_moved.state.moved[moved] and not unpin_moved.state.fixed[moved]
+    # The node stays where it was (the solver moves it later).
+    np.testing.assert_allclose(unpin_moved.state.nodes[moved], doc.state.nodes[moved])
+
+    still_free = free_rows(doc)[:1]
+    assert doc.edit_pins(still_free, False) is None  # not fixed: nothing to unpin
+    assert doc.edit_pins([], True) is None
+    assert doc.edit_pins(np.zeros(0, int), False) is None
+
+
+def test_edit_pins_all_nodes(doc):
+    pin_all = doc.edit_pins(None, True)
+    assert pin_all.text == "Pin all nodes"
+    assert pin_all.state.pinned.all()
+    unpin_all = doc.edit_pins(None, False)
+    assert unpin_all.text == "Unpin all nodes"
+    assert not unpin_all.state.fixed.any()
+    commit(doc, pin_all)
+    assert doc.edit_pins(None, True) is None
+    assert doc.edit_pins(range(27), True) is None
+
+
+def test_edit_pins_start_from_the_base_nodes(doc):
+    live = doc.state.nodes + np.linspace(0, 0.02, 81).reshape(27, 3)
+    doc.live_nodes = live
+    edit = doc.edit_pins(free_rows(doc)[:1], True)
+    np.testing.assert_allclose(edit.state.nodes, live)
+    # Preserve off: the plain FFD, free nodes at rest and fixed ones where the user put them.
+    doc.preserve = False
+    st = doc.state
+    edit = doc.edit_pins(free_rows(doc)[:1], True)
+    expect = np.where(st.fixed[:, None], st.nodes, st.lattice.rest_nodes)
+    np.testing.assert_allclose(edit.state.nodes, expect)
+    assert not np.allclose(edit.state.nodes, live)
+
+
+def test_edit_toggle_pin(doc):
+    assert doc.edit_toggle_pin() is None  # nothing selected
+    free = free_rows(doc)[:2]
+    doc.select(free)
+    edit = doc.edit_toggle_pin()
+    assert edit.text == "Pin 2 nodes" and edit.state.pinned[free].all()
+    commit(doc, edit)
+    assert doc.selection.tolist() == free.tolist()
+    edit = doc.edit_toggle_pin()  # all fixed: unpin
+    assert edit.text == "Unpin 2 nodes" and not edit.state.fixed[free].any()
+    # Moved nodes count as fixed: toggling unpins them and clears their moved flag.
+    moved = np.flatnonzero(doc.state.moved)[:3]
+    doc.select(moved)
+    edit = doc.edit_toggle_pin()
+    assert edit.text == "Unpin 3 nodes"
+    assert not edit.state.moved[moved].any() and not edit.state.pinned[moved].any()
+    # A mixed selection (some free) is pinned; the moved flags stay.
+    mixed = np.array([moved[0], free_rows(doc)[-1]])
+    doc.select(mixed)
+    edit = doc.edit_toggle_pin()
+    assert edit.text == "Pin 2 nodes"
+    assert edit.state.pinned[mixed].all() and edit.state.moved[moved[0]]
+
+
+# -- edit_target -----------------------------------------------------------------------------
+def test_edit_target(rest):
+    edit = rest.edit_target(90)
+    assert_fresh(edit)
+    assert edit.text == "Target volume 90 %"
+    assert edit.state.target_ratio == pytest.approx(0.9)
+    np.testing.assert_array_equal(edit.state.moved, rest.state.moved)
+    assert rest.edit_target(100) is None  # the same ratio
+    assert rest.edit_target(100.0) is None
+    for bad in (0, -5, float("nan")):
+        assert rest.edit_target(bad) is None
+    commit(rest, edit)
+    assert rest.needs_solve()
+    assert rest.edit_target(90.0) is None
+    back = rest.edit_target(112.5)
+    assert back.text == "Target volume 112.5 %"
+    assert back.state.target_ratio == pytest.approx(1.125)
+
+
+def test_edit_target_rejects_an_infinite_target(rest):
+    assert rest.edit_target(float("inf")) is None
+
+
+def test_edit_target_starts_from_the_base_nodes(doc):
+    live = doc.state.nodes * 1.01
+    doc.live_nodes = live
+    np.testing.assert_allclose(doc.edit_target(95).state.nodes, live)
+
+
+# -- edit_reset ------------------------------------------------------------------------------
+def test_edit_reset(doc):
+    st = doc.state
+    commit(doc, doc.edit_pins(free_rows(doc)[:1], True))
+    edit = doc.edit_reset()
+    assert edit.text == "Reset nodes"
+    new = edit.state
+    np.testing.assert_allclose(new.nodes, st.lattice.rest_nodes)
+    assert not new.pinned.any() and not new.moved.any()
+    assert new.solved is True and new.result is None  # at rest with ratio 1: solved
+    assert new.problem is st.problem
+    commit(doc, edit)
+    assert doc.edit_reset() is None  # at rest already
+    assert describe_status(doc.state, preserve=True, activity="idle")[0] == "At rest"
+
+
+def test_edit_reset_with_another_target_needs_a_solve(doc):
+    commit(doc, doc.edit_target(80))
+    edit = doc.edit_reset()
+    assert edit.state.solved is False and edit.state.target_ratio == pytest.approx(0.8)
+    assert not edit.state.fixed.any()
+
+
+def test_edit_reset_of_pins_alone(rest):
+    assert rest.edit_reset() is None
+    commit(rest, rest.edit_pins([4], True))
+    edit = rest.edit_reset()
+    assert edit is not None and not edit.state.pinned.any() and edit.state.solved
+
+
+# -- edit_lattice ----------------------------------------------------------------------------
+def test_edit_lattice_builds_a_new_lattice_at_rest(doc):
+    commit(doc, doc.edit_pins(free_rows(doc)[:1], True))
+    commit(doc, doc.edit_target(90))
+    old = doc.problem
+    edit = doc.edit_lattice((4, 3, 2))
+    assert edit.text == "Rebuild lattice 4x3x2"
+    st = edit.state
+    assert st.lattice.shape == (4, 3, 2) and st.problem is not old
+    np.testing.assert_allclose(st.nodes, st.lattice.rest_nodes)
+    assert not st.moved.any() and not st.pinned.any()
+    assert st.problem.scenario.moves == () and st.problem.scenario.pins == ()
+    assert st.target_ratio == pytest.approx(0.9)
+    assert st.solved is False and st.result is None  # ratio 0.9: to be solved
+    # The model pyramid is reused, not loaded again.
+    assert all(a is b for a, b in zip(st.surface.levels, old.surface.levels))
+    assert doc.problem is old  # nothing committed
+
+
+def test_edit_lattice_at_ratio_one_is_solved_at_rest(doc):
+    edit = doc.edit_lattice([2, 2, 2])
+    assert edit.state.solved is True and edit.state.result is None
+    assert edit.state.lattice.shape == (2, 2, 2)
+
+
+def test_edit_lattice_checks_the_shape(doc):
+    assert doc.edit_lattice((3, 3, 3)) is None  # the same shape
+    for bad in ((1, 3, 3), (3, 11, 3), (3, 3, 0), (3, 3), (3, 3, 3, 3)):
+        with pytest.raises(IsochorError, match="2 to 10"):
+            doc.edit_lattice(bad)
+    edit = doc.edit_lattice((10, 2, 10))
+    assert edit.state.lattice.shape == (10, 2, 10)
+
+
+def test_edit_lattice_reuses_a_problem_built_before(doc):
+    first = doc.edit_lattice((4, 3, 3))
+    commit(doc, first)
+    second = doc.edit_lattice((3, 4, 3))
+    commit(doc, second)
+    again = doc.edit_lattice((4, 3, 3))
+    assert again.state.problem is first.state.problem
+    assert again.state is not first.state
+    assert not again.state.moved.any()
+    np.testing.assert_allclose(again.state.nodes, again.state.lattice.rest_nodes)
+
+
+def test_edit_lattice_back_to_the_original_shape_is_at_rest(doc):
+    commit(doc, doc.edit_lattice((4, 3, 3)))
+    back = doc.edit_lattice((3, 3, 3))
+    st = back.state
+    assert st.lattice.shape == (3, 3, 3)
+    assert not st.moved.any() and not st.pinned.any()
+    np.testing.assert_allclose(st.nodes, st.lattice.rest_nodes)
+
+
+# -- results belong to the state they solved ---------------------------------------------------
+def test_every_edit_is_unsolved_without_a_result(doc):
+    doc.record_result(doc.cell, None, summary())
+    assert doc.state.solved and doc.state.result is not None
+    doc.select(free_rows(doc)[:2])
+    edits = [
+        doc.edit_position(0, 0.3),
+        doc.edit_pins(None, True),
+        doc.edit_toggle_pin(),
+        doc.edit_target(95),
+    ]
+    doc.begin_drag().move([0.1, 0.0, 0.0])
+    edits.append(doc.end_drag())
+    for edit in edits:
+        assert_fresh(edit)
+        assert edit.state.problem is doc.problem
+
+
+def test_record_result_on_the_current_cell(doc):
+    events = events_of(doc)
+    doc.live_nodes = doc.state.nodes + 0.1
+    solved = doc.state.nodes + 0.05
+    s = summary()
+    doc.record_result(doc.cell, solved, s)
+    assert events == ["state"]
+    assert doc.state.solved and doc.state.result is s
+    np.testing.assert_allclose(doc.state.nodes, solved)
+    assert not doc.state.nodes.flags.writeable
+    assert doc.live_nodes is None
+    assert not doc.needs_solve()
+
+
+def test_record_result_on_a_cell_that_is_not_current(doc):
+    old = doc.cell
+    old_nodes = old.state.nodes
+    commit(doc, doc.edit_target(90))
+    current = doc.state
+    events = events_of(doc)
+    doc.live_nodes = current.nodes
+    doc.record_result(old, None, summary(levels=(6,)))
+    assert events == []
+    assert doc.state is current and doc.live_nodes is not None
+    assert old.state.solved and old.state.result.levels == (6,)
+    np.testing.assert_array_equal(old.state.nodes, old_nodes)  # None keeps the nodes
+    # Undo lands on the solved state.
+    doc.set_cell(old)
+    assert doc.state.solved and not doc.needs_solve()
+
+
+def test_solve_summary_span_words():
+    assert summary(levels=(4,), n_levels=7).span() == "Solved level 5 of 7"
+    assert summary(levels=(3, 4), n_levels=7).span() == "Solved levels 4–5 of 7"
+    assert summary(levels=(0, 1, 2), n_levels=3).span() == "Solved levels 1–3 of 3"
+    failed = SolveSummary.failed("boom")
+    assert failed.converged is False and failed.message == "boom" and failed.levels == ()
+    assert failed.span() == "Solved no level"
+
+
+def test_solve_summary_of_a_real_solve(doc, torus_result):
+    r = torus_result
+    n = len(doc.surface.levels)
+    s = SolveSummary.of(r, n)
+    assert s.converged is True and r.converged
+    assert s.levels == tuple(st.level for st in r.levels) and len(s.levels) >= 1
+    assert s.n_levels == n == 7
+    assert s.free_nodes == 9
+    assert s.rel_volume_error == pytest.approx(r.rel_volume_error)
+    assert abs(s.rel_volume_error) <= doc.problem.options.tol_volume
+    assert s.sigma == pytest.approx(r.sigma) and s.lam == pytest.approx(r.lam)
+    assert s.elapsed == pytest.approx(r.elapsed)
+    first, last = s.levels[0] + 1, s.levels[-1] + 1
+    words = f"level {first}" if first == last else f"levels {first}–{last}"
+    assert s.span() == f"Solved {words} of 7"
+    doc.record_result(doc.cell, r.nodes, s)
+    assert doc.state.converged
+    np.testing.assert_allclose(doc.state.nodes, r.nodes)
+    chip, tone, text = describe_status(doc.state, preserve=True, activity="idle")
+    assert (chip, tone) == ("Converged", "good")
+    assert text == (
+        f"Converged: |dV|/V0 = {abs(r.rel_volume_error):.1e} on the full mesh, 9 free nodes."
+    )
+
+
+def test_an_edit_after_a_converged_solve_shows_no_old_result(doc, torus_result):
+    doc.record_result(doc.cell, torus_result.nodes, SolveSummary.of(torus_result, 7))
+    assert describe_status(doc.state, preserve=True, activity="idle")[0] == "Converged"
+    row = free_rows(doc)[:1]
+    doc.select(row)
+    commit(doc, doc.edit_position(2, 0.2))
+    assert doc.state.result is None
+    assert describe_status(doc.state, preserve=True, activity="idle") == (
+        "Edited",
+        "neutral",
+        "Not solved yet.",
+    )
+    # The edit starts from the solved nodes.
+    others = np.setdiff1d(np.arange(27), row)
+    np.testing.assert_allclose(doc.state.nodes[others], np.asarray(torus_result.nodes)[others])
+    assert doc.state.nodes[row[0], 2] == pytest.approx(0.2)
+
+
+# -- set_cell --------------------------------------------------------------------------------
+def test_set_cell_with_a_new_lattice_clears_the_selection(doc):
+    doc.select([1, 2, 26])
+    events = events_of(doc)
+    doc.live_nodes = doc.state.nodes
+    doc.begin_drag()
+    commit(doc, doc.edit_lattice((2, 2, 2)))
+    assert events == ["scene", "state"]
+    assert doc.selection.tolist() == []
+    assert doc.drag is None and doc.live_nodes is None
+
+
+def test_set_cell_with_the_same_lattice_keeps_the_selection(doc):
+    doc.select([1, 2, 26])
+    events = events_of(doc)
+    doc.live_nodes = doc.state.nodes
+    doc.begin_drag()
+    cell = commit(doc, doc.edit_target(90))
+    assert events == ["state"]
+    assert doc.cell is cell
+    assert doc.selection.tolist() == [1, 2, 26]
+    assert doc.drag is None and doc.live_nodes is None
+
+
+# -- the drag session ------------------------------------------------------------------------
+def test_begin_drag_needs_a_selection(doc):
+    assert doc.begin_drag() is None
+    assert doc.drag is None
+    assert doc.end_drag() is None
+
+
+def test_drag_moves_only_the_dragged_nodes(doc):
+    rows = free_rows(doc)[:2]
+    doc.select(rows)
+    base = doc.base_nodes()
+    drag = doc.begin_drag()
+    assert doc.drag is drag and drag.before is doc.cell
+    assert drag.rows.tolist() == rows.tolist()
+    assert drag.text == "Move 2 nodes"
+    np.testing.assert_allclose(drag.base, base)
+    delta = np.array([0.1, -0.2, 0.05])
+    nodes = drag.move(delta)
+    np.testing.assert_allclose(nodes[rows], base[rows] + delta)
+    others = np.setdiff1d(np.arange(27), rows)
+    np.testing.assert_array_equal(nodes[others], base[others])
+    np.testing.assert_array_equal(drag.nodes, nodes)
+    # Deltas are from the start, not cumulative.
+    nodes = drag.move(2 * delta)
+    np.testing.assert_allclose(nodes[rows], base[rows] + 2 * delta)
+    # With ``free``: the other nodes from the live preview.
+    free = base + 0.3
+    nodes = drag.move(delta, free)
+    np.testing.assert_allclose(nodes[rows], base[rows] + delta)
+    np.testing.assert_allclose(nodes[others], free[others])
+    out = drag.with_dragged(base - 1.0)
+    np.testing.assert_allclose(out[rows], base[rows] + delta)
+    np.testing.assert_allclose(out[others], base[others] - 1.0)
+
+
+def test_drag_fixed_includes_the_dragged_rows(doc):
+    rows = free_rows(doc)[:2]
+    doc.select(rows)
+    drag = doc.begin_drag()
+    fixed = drag.fixed()
+    expect = doc.state.fixed.copy()
+    expect[rows] = True
+    np.testing.assert_array_equal(fixed, expect)
+    assert not doc.state.fixed[rows].any()  # the state is untouched
+
+
+def test_end_drag_returns_the_move(doc):
+    rows = free_rows(doc)[:2]
+    doc.select(rows)
+    before = doc.cell
+    drag = doc.begin_drag()
+    drag.move([0.0, 0.0, 0.25])
+    edit = doc.end_drag()
+    assert doc.drag is None and doc.cell is before
+    assert_fresh(edit)
+    assert edit.text == "Move 2 nodes"
+    np.testing.assert_allclose(edit.state.nodes, drag.nodes)
+    assert edit.state.moved[rows].all()
+    np.testing.assert_array_equal(edit.state.pinned, before.state.pinned)
+    assert doc.end_drag() is None
+
+
+def test_end_drag_takes_the_free_nodes_from_the_live_solve(doc):
+    rows = free_rows(doc)[:1]
+    doc.select(rows)
+    start_live = doc.state.nodes + 0.01
+    doc.live_nodes = start_live
+    drag = doc.begin_drag()
+    np.testing.assert_allclose(drag.base, start_live)  # starts from what is on screen
+    delta = np.array([0.2, 0.0, 0.0])
+    drag.move(delta, doc.live_nodes)
+    newer = doc.state.nodes + 0.02  # the preview solve went on
+    doc.live_nodes = newer
+    edit = doc.end_drag()
+    others = np.setdiff1d(np.arange(27), rows)
+    np.testing.assert_allclose(edit.state.nodes[others], newer[others])
+    np.testing.assert_allclose(edit.state.nodes[rows], start_live[rows] + delta)
+    assert edit.state.moved[rows].all()
+
+
+def test_drag_with_preserve_off_is_plain_ffd(doc):
+    doc.preserve = False
+    rows = free_rows(doc)[:1]
+    doc.select(rows)
+    doc.live_nodes = doc.state.nodes + 0.5  # ignored without the volume constraint
+    st = doc.state
+    plain = np.where(st.fixed[:, None], st.nodes, st.lattice.rest_nodes)
+    drag = doc.begin_drag()
+    np.testing.assert_allclose(drag.base, plain)
+    drag.move([0.0, 0.1, 0.0])
+    edit = doc.end_drag()
+    others = np.setdiff1d(np.arange(27), rows)
+    np.testing.assert_allclose(edit.state.nodes[others], plain[others])
+    np.testing.assert_allclose(edit.state.nodes[rows], plain[rows] + [0.0, 0.1, 0.0])
+
+
+def test_cancel_drag(doc):
+    doc.select([4])
+    before = doc.cell
+    doc.begin_drag().move([1.0, 1.0, 1.0])
+    doc.cancel_drag()
+    assert doc.drag is None and doc.cell is before
+    assert doc.end_drag() is None
+    assert not doc.state.moved[4]
+
+
+# -- views of the state ----------------------------------------------------------------------
+def test_view_and_base_nodes(doc):
+    st = doc.state
+    solved = st.nodes + 0.1
+    doc.record_result(doc.cell, solved, summary())
+    np.testing.assert_allclose(doc.view_nodes(), solved)
+    np.testing.assert_allclose(doc.base_nodes(), solved)
+    live = solved + 0.1
+    doc.live_nodes = live
+    np.testing.assert_allclose(doc.base_nodes(), live)
+    base = doc.base_nodes()
+    base[:] = 0  # a copy
+    np.testing.assert_allclose(doc.live_nodes, live)
+    doc.preserve = False
+    plain = np.where(st.fixed[:, None], solved, st.lattice.rest_nodes)
+    np.testing.assert_allclose(doc.view_nodes(), plain)
+    np.testing.assert_allclose(doc.base_nodes(), plain)
+    assert not doc.needs_solve()
+    # view_nodes of another state
+    np.testing.assert_allclose(
+        doc.view_nodes(st), np.where(st.fixed[:, None], st.nodes, st.lattice.rest_nodes)
+    )
+
+
+# -- describe_status -------------------------------------------------------------------------
+def test_describe_status_for_each_activity(doc, rest):
+    edited = doc.state
+    at_rest = rest.state
+    conv = replace(edited, solved=True, result=summary(free_nodes=1))
+    bad = replace(edited, solved=True, result=summary(converged=False, message="no"))
+    bad_silent = replace(edited, solved=True, result=summary(converged=False))
+    failed = replace(edited, solved=True, result=SolveSummary.failed("Lattice folded."))
+
+    for st in (edited, at_rest, conv, bad):
+        assert describe_status(st, preserve=False, activity="solving") == (
+            "Plain FFD",
+            "neutral",
+            "Volume constraint off: plain free-form deformation.",
+        )
+        assert describe_status(st, preserve=True, activity="dragging") == (
+            "Dragging",
+            "busy",
+            "Release to solve.",
+        )
+        assert describe_status(st, preserve=True, activity="solving") == (
+            "Solving…",
+            "busy",
+            "Solving…",
+        )
+
+    assert describe_status(edited, preserve=True, activity="idle") == (
+        "Edited",
+        "neutral",
+        "Not solved yet.",
+    )
+    assert describe_status(at_rest, preserve=True, activity="idle") == (
+        "At rest",
+        "good",
+        "At rest: nothing to solve.",
+    )
+    assert describe_status(conv, preserve=True, activity="idle") == (
+        "Converged",
+        "good",
+        "Converged: |dV|/V0 = 1.2e-05 on the full mesh, 1 free node.",
+    )
+    assert describe_status(bad, preserve=True, activity="idle") == ("Not converged", "bad", "no")
+    assert describe_status(bad_silent, preserve=True, activity="idle") == (
+        "Not converged",
+        "bad",
+        "The solve did not converge.",
+    )
+    assert describe_status(edited, preserve=True, activity="stopped") == (
+        "Stopped",
+        "neutral",
+        "Stopped before converging: Solve again to finish.",
+    )
+    # Stopped after the state was solved: the solved state speaks.
+    assert describe_status(conv, preserve=True, activity="stopped")[0] == "Converged"
+    assert describe_status(failed, preserve=True, activity="failed") == (
+        "Solver failed",
+        "bad",
+        "Lattice folded.",
+    )
+    assert describe_status(failed, preserve=True, activity="idle") == (
+        "Not converged",
+        "bad",
+        "Lattice folded.",
+    )
+    assert describe_status(edited, preserve=True, activity="failed") == (
+        "Solver failed",
+        "bad",
+        "The solve did not converge.",
+    )
+
+
+# -- files -----------------------------------------------------------------------------------
+def edited_torus(doc: Document) -> Document:
+    """The torus with a typed move, a pin on a free node, a pin on a moved node, target 95 %."""
+    free = free_rows(doc)
+    doc.select(free[:1])
+    commit(doc, doc.edit_position(0, 0.5))
+    commit(doc, doc.edit_pins([free[1], 0], True))  # node 0 is moved (and now pinned too)
+    commit(doc, doc.edit_target(95))
+    return doc
+
+
+def test_scenario_of_the_current_state(doc):
+    edited_torus(doc)
+    st = doc.state
+    lat = st.lattice
+    sc = doc.scenario()
+    moved = np.flatnonzero(st.moved)
+    assert [m.node for m in sc.moves] == [lat.ijk(r) for r in moved]
+    for mv, r in zip(sc.moves, moved):
+        assert mv.by is None and mv.to == tuple(float(x) for x in st.nodes[r])
+        assert all(type(x) is float for x in mv.to)
+    free = np.flatnonzero(~doc.problem.fixed)  # the example's free nodes
+    assert sc.pins == (lat.ijk(int(free[1])),)  # not node 0: it is moved
+    assert st.pinned[0]
+    assert sc.target_volume_ratio == pytest.approx(0.95)
+    assert sc.model == {"builtin": "torus"}
+    assert sc.lattice_nodes == (3, 3, 3)
+    assert sc.tol_volume == doc.problem.scenario.tol_volume
+
+
+def test_save_and_read_round_trip(doc, tmp_path):
+    edited_torus(doc)
+    path = tmp_path / "squash.json"
+    doc.save(path)
+    assert doc.path == Path(os.path.abspath(path)) and doc.title == "squash.json"
+    sc = Scenario.read(path)
+    mine = doc.scenario()
+    assert sc.moves == mine.moves and sc.pins == mine.pins
+    assert sc.target_volume_ratio == mine.target_volume_ratio
+    assert sc.lattice_nodes == mine.lattice_nodes and sc.padding == mine.padding
+    # Opened again, it is the same edit.
+    again = Document.open(path)
+    assert again.path == Path(os.path.abspath(path)) and again.title == "squash.json"
+    st, new = doc.state, again.state
+    np.testing.assert_allclose(new.nodes, st.nodes, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(new.moved, st.moved)
+    np.testing.assert_array_equal(new.pinned & ~new.moved, st.pinned & ~st.moved)
+    assert new.target_ratio == st.target_ratio
+    assert new.solved is False
+
+
+def test_open_a_scenario_as_a_template(tmp_path):
+    path = tmp_path / "t.json"
+    example_scenario("torus-compression").write(path)
+    d = Document.open(path, template=True)
+    assert d.path is None and d.title == "t.json"
+    assert d.state.moved.sum() == 18
+    d2 = Document.open(str(path))
+    assert d2.path == Path(os.path.abspath(path))
+
+
+def test_open_rejects_unknown_files(tmp_path):
+    with pytest.raises(IsochorError) as exc:
+        Document.open(tmp_path / "notes.txt")
+    msg = str(exc.value)
+    assert "notes.txt" in msg and ".txt" in msg
+    assert "OBJ, PLY, STL, OFF" in msg and "JSON" in msg
+    with pytest.raises(IsochorError, match=r"\(none\)"):
+        Document.open(tmp_path / "README")
+    with pytest.raises(IsochorError, match="no such file"):
+        Document.open(tmp_path / "missing.obj")
+    with pytest.raises(IsochorError, match="no such scenario file"):
+        Document.open(tmp_path / "missing.json")
+
+
+def test_open_a_scenario_whose_model_is_missing(tmp_path):
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps({"model": {"path": "gone.obj"}}), encoding="utf-8")
+    with pytest.raises(IsochorError, match="gone.obj"):
+        Document.open(path)
+
+
+def sphere_mesh(scale=(1.0, 1.0, 1.0)) -> TriMesh:
+    m = sphere_levels(3)[-1]
+    return TriMesh(m.vertices * np.asarray(scale), m.faces)
+
+
+@pytest.mark.parametrize(
+    ("scale", "shape"),
+    [((2.0, 1.0, 1.0), (4, 3, 3)), ((1.0, 1.0, 2.0), (3, 3, 4)), ((1.0, 1.6, 1.0), (3, 4, 3))],
+)
+def test_open_a_model_in_a_default_lattice(tmp_path, scale, shape):
+    mesh = sphere_mesh(scale)
+    assert default_lattice_shape(mesh) == shape
+    path = tmp_path / "model.obj"
+    save_mesh(path, mesh)
+    d = Document.open(path)
+    assert d.state.lattice.shape == shape
+    assert d.title == "model.obj" and d.path is None
+    assert d.state.solved and not d.state.fixed.any()
+    sc = d.scenario()
+    assert Path(sc.model["path"]).is_absolute()
+    assert sc.model["path"] == os.path.abspath(path)
+    np.testing.assert_allclose(d.deformed_mesh().vertices, d.surface.full.vertices, atol=1e-9)
+
+
+def test_model_paths_keep_symbolic_links(tmp_path):
+    real = tmp_path / "real_folder"
+    real.mkdir()
+    link = tmp_path / "linked"
+    os.symlink(real, link, target_is_directory=True)
+    save_mesh(real / "model.obj", sphere_mesh((2.0, 1.0, 1.0)))
+
+    d = Document.open(link / "model.obj")
+    model = d.scenario().model["path"]
+    assert Path(model).is_absolute()
+    assert model == os.path.abspath(link / "model.obj")
+    assert "real_folder" not in model
+
+    d.select([0])
+    commit(d, d.edit_position(0, -3.0))
+    d.save(link / "scene.json")
+    assert d.path == Path(os.path.abspath(link / "scene.json"))
+    saved = json.loads((real / "scene.json").read_text(encoding="utf-8"))
+    assert saved["model"]["path"] == "model.obj"
+    assert "real_folder" not in (link / "scene.json").read_text(encoding="utf-8")
+
+    # Saved elsewhere: relative to the folder as the user sees it, through the link.
+    other = tmp_path / "other"
+    other.mkdir()
+    d.save(other / "scene.json")
+    saved = json.loads((other / "scene.json").read_text(encoding="utf-8"))
+    assert saved["model"]["path"] == os.path.join("..", "linked", "model.obj")
+
+    # The real folder is renamed and the link follows it: the scenario still opens.
+    moved = tmp_path / "renamed_folder"
+    real.rename(moved)
+    link.unlink()
+    os.symlink(moved, link, target_is_directory=True)
+    again = Document.open(link / "scene.json")
+    assert again.scenario().model_path() == Path(os.path.abspath(link / "model.obj"))
+    assert again.state.moved[0]
+    np.testing.assert_allclose(again.state.nodes[0], d.state.nodes[0])
+    assert Document.open(other / "scene.json").state.moved[0]
+
+
+def test_export_writes_the_deformed_mesh(rest, tmp_path):
+    path = tmp_path / "out.obj"
+    rest.export(path)
+    loaded = load_mesh(path).mesh
+    assert loaded.n_faces == rest.surface.full.n_faces
+    np.testing.assert_allclose(
+        np.sort(loaded.vertices, axis=0), np.sort(rest.surface.full.vertices, axis=0), atol=1e-9
+    )
+    nodes = rest.state.nodes * 2.0 - rest.surface.center  # scaled about the centre
+    mesh = rest.deformed_mesh(nodes)
+    np.testing.assert_allclose(
+        mesh.vertices, rest.surface.full.vertices * 2.0 - rest.surface.center, atol=1e-9
+    )
+
+
+# -- no Qt -----------------------------------------------------------------------------------
+def test_the_document_runs_without_qt():
+    """A whole edit session in a fresh interpreter imports neither Qt nor VTK."""
+    code = (
+        "import sys\n"
+        "from isochor.app.document import Document, StateCell, describe_status\n"
+        "from isochor.core.scenario import Scenario\n"
+        "from isochor.core.problem import build\n"
+        f"d = Document(build(Scenario.from_dict({SPHERE!r})))\n"
+        "d.select([0, 1])\n"
+        "d.set_cell(StateCell(d.edit_position(0, -2.0).state))\n"
+        "d.begin_drag().move([0.1, 0, 0])\n"
+        "d.set_cell(StateCell(d.end_drag().state))\n"
+        "print(describe_status(d.state, preserve=True, activity='idle')[0])\n"
+        "bad = sorted(n for n in sys.modules if n.split('.')[0] in "
+        "{'PySide6', 'shiboken6', 'PyQt5', 'PyQt6', 'vtk', 'vtkmodules', 'pyvista'})\n"
+        "print(','.join(bad))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        check=False,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0] == "Edited"
+    assert lines[1:] in ([""], []), f"imported: {lines[1:]}"
