@@ -28,7 +28,7 @@ test: sysdeps venv
 	$(PY) -m pytest -q $(ARGS)
 
 bench: sysdeps venv
-	$(VENV)/bin/isochor bench $(ARGS)
+	$(PY) -m benchmarks $(ARGS)
 
 clean:
 	rm -rf $(VENV) build dist *.egg-info .pytest_cache out

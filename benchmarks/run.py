@@ -1,0 +1,225 @@
+"""The benchmark's command line and the order it measures in; numbers are printed as they come.
+
+Start it with ``python -m benchmarks`` (which pins BLAS to one thread before NumPy is
+imported), not by importing this module.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.cases import EXAMPLES, FIGURES, Case, cow_case, example_case
+from benchmarks.profiling import SolveProfile, profile_solve
+from benchmarks.report import DEFAULT_OUT, Results, draw_figure, write_report
+from benchmarks.scale import (
+    ROOT,
+    SCALE_TORI,
+    ScaleRow,
+    armadillo_child,
+    run_armadillo,
+    scale_row,
+)
+from benchmarks.tables import (
+    Table1Row,
+    first_record_latency,
+    fmt_level_row,
+    start_level_sweep,
+    table1_rows,
+    table2,
+    table2_paper_schedule,
+)
+from benchmarks.targets import evaluate_targets
+from benchmarks.timing import environment, limit_blas_threads
+
+DEFAULT_MODELS = ROOT.parent / "shared" / "models"
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m benchmarks",
+        description="Reproduce the paper's Tables 1-2 and Figures 5-8 on this machine, time "
+        "the evaluation at scale and the armadillo, check the performance targets.",
+    )
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="2 repeats, small cases only; writes no file unless --out is given",
+    )
+    p.add_argument(
+        "--repeats", type=int, default=None, help="runs per timing (default 7; 2 with --quick)"
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help=f"the Markdown report (default {DEFAULT_OUT.relative_to(ROOT)}; "
+        "figures go next to it)",
+    )
+    p.add_argument(
+        "--models",
+        type=Path,
+        default=None,
+        help="folder with cow.obj and the armadillo (default ../shared/models, or $ISOCHOR_MODELS)",
+    )
+    p.add_argument("--no-figures", action="store_true", help="do not draw Figures 5-8")
+    p.add_argument("--armadillo-child", metavar="PLY", help=argparse.SUPPRESS)
+    return p
+
+
+def print_profile(profile: SolveProfile) -> None:
+    for lv in profile.levels:
+        c = lv.calls
+        print(
+            f"  k {lv.level} N_tri {lv.triangles:6d} steps {lv.steps:4d} evals {lv.evals:4d} "
+            f"{1e6 * lv.eval_s / max(lv.evals, 1):6.0f} us/eval  segment "
+            f"{1e3 * lv.segment_s:7.2f} ms  eval {1e3 * lv.eval_s:6.2f}  line search "
+            f"{1e3 * c['line search'].cum_s:6.2f}  springs {1e3 * c['springs'].cum_s:5.2f}"
+        )
+    print(
+        f"  total {1e3 * profile.total_s:.1f} ms under cProfile ({1e3 * profile.plain_s:.1f}"
+        f" ms without); before the first record {1e3 * profile.start_s:.1f} ms, after the "
+        f"last level {1e3 * profile.finish_s:.1f} ms"
+    )
+
+
+def figures_for(
+    cases: Sequence[Case], rows: Sequence[Table1Row], out: Path, notes: list[str]
+) -> list[str]:
+    """Draw Figures 5-8 next to ``out``; their file names (a note when matplotlib is absent)."""
+    figures: list[str] = []
+    for case in cases:
+        row = [r for r in rows if r.case == case.key][-1]  # the paper-size row if there is one
+        name = f"fig{FIGURES[case.key]}_{case.key.replace('-', '_')}.png"
+        why = draw_figure(row, case.size, out.parent / name)
+        if why:
+            notes.append(why)
+            print("  " + why)
+            break
+        figures.append(name)
+    if figures:
+        print(f"\nFigures: {', '.join(figures)}")
+    return figures
+
+
+def scale_rows(quick: bool, repeats: int) -> list[ScaleRow]:
+    from isochor.core.shapes import torus
+
+    rows = []
+    for n in [4096, 65536] if quick else list(SCALE_TORI):
+        mesh = torus(*SCALE_TORI[n])
+        for shape in ((3, 3, 3), (5, 5, 5)):
+            s = scale_row(mesh, shape, repeats if quick else max(repeats, 5))
+            rows.append(s)
+            ref = f"reference {s.t_reference.ms(2)} ms" if s.t_reference else ""
+            print(
+                f"  {s.triangles:8d} tri {s.nodes:4d} nodes {s.form:8s} eval "
+                f"{s.t_eval.ms(2)} ms  volume {s.t_volume.ms(2)} ms  {ref}"
+            )
+        del mesh
+    return rows
+
+
+def main(
+    argv: Sequence[str] | None = None,
+    *,
+    numpy_first: bool = True,
+    user_blas: Mapping[str, str] | None = None,
+) -> int:
+    """Run the benchmark; ``numpy_first`` and ``user_blas`` come from ``__main__``."""
+    args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    user_blas = dict(user_blas or {})
+    limit_blas_threads(numpy_first, user_blas)
+    if args.armadillo_child:
+        print(json.dumps(armadillo_child(args.armadillo_child, args.repeats or 5)))
+        return 0
+    quick = args.quick
+    repeats = args.repeats or (2 if quick else 7)
+    out = args.out if args.out is not None else (None if quick else DEFAULT_OUT)
+    models = args.models or Path(os.environ.get("ISOCHOR_MODELS", DEFAULT_MODELS))
+    env = environment(user_blas)
+    print(
+        f"python -m benchmarks{' --quick' if quick else ''}: {env['cpu']}; Python "
+        f"{env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']}; {env['blas']}"
+    )
+    print(f"{repeats} repeats per timing; medians (min-max)\n")
+    res = Results(env, quick, repeats, [])
+
+    print("Table 1")
+    cases = [example_case(n) for n in EXAMPLES]
+    cow, why = cow_case(models)
+    if cow is None:
+        res.notes.append(why)
+        print("  " + why)
+    else:
+        cases.append(cow)
+        res.notes.append(f"cow: {models / 'cow.obj'}, {cow.note} triangles")
+    for case in cases:
+        res.rows += table1_rows(case, repeats, max_paper_tri=16384 if quick else None)
+
+    tc_case = cases[0]
+    tc_est = next(r for r in res.rows if r.case == tc_case.key and r.variant.startswith("estimate"))
+    res.t2rows = table2(tc_est)
+    print("\nTable 2 (torus compression)")
+    for r in res.t2rows:
+        print(fmt_level_row(r))
+    res.t2paper = table2_paper_schedule(tc_case, repeats)
+    print("  paper schedule (start_level=0):")
+    for r in res.t2paper:
+        print(fmt_level_row(r))
+
+    print("\nWhere the time goes (torus compression, cProfile)")
+    res.profile = profile_solve(tc_case)
+    print_profile(res.profile)
+
+    print("\nStart level (torus compression)")
+    res.sweep = start_level_sweep(tc_case, repeats)
+
+    print("\nFirst progress record (fresh surface / set up)")
+    for case in cases:
+        cold, warm = first_record_latency(case, res.rows)
+        res.latency[case.key] = (cold, warm)
+        print(f"  {case.key:18s} {1e3 * cold:6.2f} ms / {1e3 * warm:6.2f} ms")
+
+    if out is not None and not args.no_figures:
+        res.figures = figures_for(cases, res.rows, out, res.notes)
+
+    print("\nScale: volume + gradient evaluation")
+    res.scale = scale_rows(quick, repeats)
+
+    arma_why = "--quick skips the armadillo" if quick else ""
+    if not quick:
+        print("\nArmadillo (child process)")
+        res.arma, arma_why = run_armadillo(models, repeats)
+        a = res.arma
+        if a is None:
+            res.notes.append(arma_why)
+            print("  " + arma_why)
+        else:
+            print(
+                f"  load {a['load_s']:.2f} s, pyramid {a['pyramid_s']:.2f} s, first solve "
+                f"{a['solve_cold_s']:.3f} s, later {np.median(a['solve_s']):.3f} s, peak RSS "
+                f"{a['peak_rss_mb']:.0f} MB, levels {a['levels']}"
+            )
+            res.latency["armadillo"] = (
+                a["first_record_cold_s"],
+                float(np.median(a["first_record_s"])),
+            )
+
+    res.targets = evaluate_targets(
+        res.rows, res.scale, res.arma, res.latency, quick=quick, arma_why=arma_why
+    )
+    print("\nTargets")
+    for t in res.targets:
+        print("  " + t.line())
+
+    if out is not None:
+        write_report(res, out)
+        print(f"\nWrote {out}")
+    return 0
