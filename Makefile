@@ -3,7 +3,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 PYTHON ?= python3
 
-.PHONY: venv sysdeps run test bench clean
+.PHONY: venv sysdeps run test lint bench assets clean
 
 # Debian system packages (Qt/VTK runtime libs, Xvfb); apt runs only if something is missing.
 sysdeps:
@@ -14,10 +14,11 @@ venv: $(VENV)/.installed
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 
-# Re-install only when pyproject.toml (or a package's __init__.py, which decides how the
-# editable install maps `core`/`app`) is newer than the stamp.
-$(VENV)/.installed: pyproject.toml $(wildcard core/__init__.py app/__init__.py) | $(PY)
-	$(PY) -m pip install --upgrade pip
+# Re-install only when pyproject.toml (dependencies, the package-dir mapping) or the version
+# in isochor/__init__.py is newer than the stamp. setuptools and wheel let the tests build
+# a wheel without network.
+$(VENV)/.installed: pyproject.toml isochor/__init__.py | $(PY)
+	$(PY) -m pip install --upgrade pip 'setuptools>=68' wheel
 	$(PY) -m pip install -e '.[test,bench]'
 	touch $@
 
@@ -26,6 +27,15 @@ run: sysdeps venv
 
 test: sysdeps venv
 	$(PY) -m pytest -q $(ARGS)
+
+# the same lint CI runs
+lint: venv
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+
+# regenerate the shipped sample models, example scenarios and icon (assets/)
+assets: venv
+	$(PY) assets/make_assets.py
 
 bench: sysdeps venv
 	$(PY) -m benchmarks $(ARGS)

@@ -100,9 +100,7 @@ class Scene:
         points = surface.deform(self.nodes)
         self._shading = Shading(faces, len(points))
         self._faces = faces
-        model = pv.PolyData(points, _cells(faces))
-        model.point_data["Normals"] = self._shading(points)
-        model.point_data.active_normals_name = "Normals"
+        model = pv.PolyData(points, _cells(faces))  # normals: set_smooth below
         self.volume = signed_volume(points, faces)
         self._model = model
         self.actors["model"] = p.add_mesh(

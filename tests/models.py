@@ -98,3 +98,31 @@ def joined(*meshes: TriMesh) -> TriMesh:
         np.concatenate([m.vertices for m in meshes]),
         np.concatenate([m.faces + o for m, o in zip(meshes, offsets)]),
     )
+
+
+#: the unit cube, outward wound: 8 corners and 12 triangles
+CUBE_VERTICES = np.array(
+    [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]],
+    dtype=float,
+)
+CUBE_FACES = np.array(
+    [
+        [0, 2, 1],
+        [0, 3, 2],
+        [4, 5, 6],
+        [4, 6, 7],
+        [0, 1, 5],
+        [0, 5, 4],
+        [1, 2, 6],
+        [1, 6, 5],
+        [2, 3, 7],
+        [2, 7, 6],
+        [3, 0, 4],
+        [3, 4, 7],
+    ]
+)
+
+
+def box(extents=(1.0, 1.0, 1.0)) -> TriMesh:
+    """An axis-aligned box with a corner at the origin, outward wound (12 triangles)."""
+    return TriMesh(CUBE_VERTICES * np.asarray(extents, dtype=float), CUBE_FACES)

@@ -22,10 +22,10 @@ from isochor.core import lattice as lat_mod
 from isochor.core import solver as solver_mod
 from isochor.core import volume as vol_mod
 from isochor.core.lattice import Lattice, PointBasis
-from isochor.core.mesh import TriMesh
 from isochor.core.shapes import sphere_levels, torus
 from isochor.core.springs import SpringNetwork
 from isochor.core.volume import VolumeOperator, signed_volume
+from tests.models import box
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -400,7 +400,7 @@ def test_scale_row_agrees_with_the_reference(shape, monkeypatch):
 
 
 def test_armadillo_bend_pins_one_end_and_turns_the_other():
-    levels = [TriMesh(*_box())]
+    levels = [box((1.0, 3.0, 2.0))]
     lattice, nodes, fixed = scale.armadillo_bend(levels, shape=(3, 5, 3), angle_deg=30)
     grid = lattice.grid_parameters()
     assert fixed.sum() == 18 and np.all(fixed == np.isin(grid[:, 1], (0.0, 1.0)))
@@ -411,30 +411,6 @@ def test_armadillo_bend_pins_one_end_and_turns_the_other():
 def test_armadillo_is_skipped_with_the_reason_when_the_model_is_missing(tmp_path):
     arma, why = scale.run_armadillo(tmp_path, repeats=1)
     assert arma is None and scale.ARMADILLO in why and "not found" in why
-
-
-def _box():
-    v = np.array(
-        [[0, 0, 0], [1, 0, 0], [1, 3, 0], [0, 3, 0], [0, 0, 2], [1, 0, 2], [1, 3, 2], [0, 3, 2]],
-        dtype=float,
-    )
-    f = np.array(
-        [
-            [0, 2, 1],
-            [0, 3, 2],
-            [4, 5, 6],
-            [4, 6, 7],
-            [0, 1, 5],
-            [0, 5, 4],
-            [1, 2, 6],
-            [1, 6, 5],
-            [2, 3, 7],
-            [2, 7, 6],
-            [3, 0, 4],
-            [3, 4, 7],
-        ]
-    )
-    return v, f
 
 
 # -- the fast evaluation against the straightforward formulas ----------------------------------

@@ -19,6 +19,7 @@ from isochor.app.cli import main
 from isochor.core.examples import EXAMPLES
 from isochor.core.meshio import load_mesh, mesh_bytes
 from isochor.core.paper_models import bend_scenario, cow_bend_scenario, squash_scenario
+from tests.fresh import run_fresh
 from tests.models import CLOSED, OPEN, available, icosphere, model, trimesh_volume
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -144,26 +145,19 @@ def test_cow_bending_plate_4(tmp_path, capsys):
 
 def test_example_solves_in_a_subprocess_without_qt(tmp_path):
     code = (
-        "import sys\n"
         "from isochor.app.cli import main\n"
         f"status = main(['solve', '--example', 'torus-compression', '--out', "
         f"{str(tmp_path / 't.stl')!r}, '--report', {str(tmp_path / 'r.json')!r}])\n"
-        "gui = {'PySide6', 'shiboken6', 'vtk', 'vtkmodules', 'pyvista', 'pyvistaqt'}\n"
-        "qt = sorted(m for m in sys.modules if m.split('.')[0] in gui\n"
-        "            or m in ('isochor.app.launch', 'isochor.app.mainwindow'))\n"
-        "print('QT', qt)\n"
-        "sys.exit(status)\n"
+        "print('status', status)\n"
     )
-    run = subprocess.run(
-        [sys.executable, "-c", code],
+    run, gui = run_fresh(
+        code,
         cwd=ROOT,
-        capture_output=True,
-        text=True,
         timeout=300,
-        check=False,
+        extra=frozenset({"isochor.app.launch", "isochor.app.mainwindow"}),
     )
-    assert run.returncode == 0, run.stderr
-    assert "QT []" in run.stdout
+    assert run.returncode == 0 and "status 0" in run.stdout, run.stderr
+    assert gui == []
     report = json.loads((tmp_path / "r.json").read_text())
     assert report["converged"] and len(report["nodes"]) == 27 and report["free_nodes"] == 9
     assert report["volume_final"] == pytest.approx(exported_volume(tmp_path / "t.stl"), rel=1e-5)

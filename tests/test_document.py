@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -33,6 +31,7 @@ from isochor.core.multilevel import solve
 from isochor.core.problem import build
 from isochor.core.scenario import Scenario
 from isochor.core.shapes import sphere_levels
+from tests.fresh import run_fresh
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -988,7 +987,6 @@ def test_export_writes_the_deformed_mesh(rest, tmp_path):
 def test_the_document_runs_without_qt():
     """A whole edit session in a fresh interpreter imports neither Qt nor VTK."""
     code = (
-        "import sys\n"
         "from isochor.app.document import Document, StateCell, describe_status\n"
         "from isochor.core.scenario import Scenario\n"
         "from isochor.core.problem import build\n"
@@ -998,19 +996,8 @@ def test_the_document_runs_without_qt():
         "d.begin_drag().move([0.1, 0, 0])\n"
         "d.set_cell(StateCell(d.end_drag().state))\n"
         "print(describe_status(d.state, preserve=True, activity='idle')[0])\n"
-        "bad = sorted(n for n in sys.modules if n.split('.')[0] in "
-        "{'PySide6', 'shiboken6', 'PyQt5', 'PyQt6', 'vtk', 'vtkmodules', 'pyvista'})\n"
-        "print(','.join(bad))\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code],
-        check=False,
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    out, gui = run_fresh(code, cwd=ROOT)
     assert out.returncode == 0, out.stderr
-    lines = out.stdout.splitlines()
-    assert lines[0] == "Edited"
-    assert lines[1:] in ([""], []), f"imported: {lines[1:]}"
+    assert out.stdout.splitlines()[0] == "Edited"
+    assert gui == [], f"imported: {gui}"

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.fresh import GUI_LIBRARIES
+
 ROOT = Path(__file__).resolve().parents[1]
 
 #: import name -> source folder (``[tool.setuptools] package-dir`` in pyproject.toml)
@@ -41,22 +43,6 @@ LAYERS = ("core", "app")
 OLD_TOP_LEVEL = ("core", "app", "assets")
 #: source folders that are not shipped: nothing shipped may import them
 UNSHIPPED = ("benchmarks", "tests")
-#: libraries core never imports (the GUI, VTK, plotting)
-GUI_LIBRARIES = frozenset(
-    {
-        "PySide6",
-        "shiboken6",
-        "PySide2",
-        "PyQt5",
-        "PyQt6",
-        "qtpy",
-        "vtk",
-        "vtkmodules",
-        "pyvista",
-        "pyvistaqt",
-        "matplotlib",
-    }
-)
 #: "about 400 lines" per module
 MAX_LINES = 420
 

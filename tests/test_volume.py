@@ -7,28 +7,10 @@ from isochor.core.lattice import Lattice
 from isochor.core.multilevel import EmbeddedSurface
 from isochor.core.shapes import sphere_levels, sphere_volume, torus_levels, torus_volume
 from isochor.core.volume import VolumeOperator, signed_volume
+from tests.models import CUBE_FACES, CUBE_VERTICES
 from tests.numdiff import central_gradient
 
-CUBE_V = np.array(
-    [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]],
-    dtype=float,
-)
-CUBE_F = np.array(
-    [
-        [0, 2, 1],
-        [0, 3, 2],
-        [4, 5, 6],
-        [4, 6, 7],
-        [0, 1, 5],
-        [0, 5, 4],
-        [1, 2, 6],
-        [1, 6, 5],
-        [2, 3, 7],
-        [2, 7, 6],
-        [3, 0, 4],
-        [3, 4, 7],
-    ]
-)
+CUBE_V, CUBE_F = CUBE_VERTICES, CUBE_FACES
 
 
 def test_cube_volume_is_exact_anywhere_and_sign_follows_winding():

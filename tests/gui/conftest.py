@@ -90,3 +90,22 @@ def distinct_colours(qimage) -> int:
     buf = np.frombuffer(img.constBits(), dtype=np.uint32, count=img.bytesPerLine() * h // 4)
     buf = buf.reshape(h, img.bytesPerLine() // 4)[:, :w]
     return len(np.unique(buf & 0xFFFFFF))
+
+
+def run_cli(args, timeout=120):
+    """``isochor ARGS`` in a child process (this interpreter, this display): the finished
+    process and how many seconds it took."""
+    import subprocess
+    import time
+
+    code = f"import sys; from isochor.app.cli import main; sys.exit(main({list(args)!r}))"
+    t0 = time.perf_counter()
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=dict(os.environ),
+        check=False,
+    )
+    return proc, time.perf_counter() - t0

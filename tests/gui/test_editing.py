@@ -343,42 +343,22 @@ def test_dragging_one_of_several_selected_nodes_moves_them_all(qtbot, window):
 
 
 def test_isochor_edit_screenshot_from_the_command_line(tmp_path):
-    import os
-    import subprocess
-    import sys
 
     from PySide6.QtGui import QImage
 
     from isochor.core.examples import example_scenario
-    from tests.gui.conftest import distinct_colours
+    from tests.gui.conftest import distinct_colours, run_cli
 
     scenario = tmp_path / "stretch.json"
     example_scenario("torus-stretch").write(scenario)
     out = tmp_path / "shot.png"
-    code = (
-        "import sys; from isochor.app.cli import main; "
-        f"sys.exit(main(['edit', {str(scenario)!r}, '--screenshot', {str(out)!r}]))"
-    )
-    proc = subprocess.run(
-        [sys.executable, "-c", code],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        env=dict(os.environ),
-    )
+    proc, _ = run_cli(["edit", str(scenario), "--screenshot", str(out)], timeout=300)
     assert proc.returncode == 0, proc.stderr
     img = QImage(str(out))
     assert not img.isNull() and distinct_colours(img) > 100
 
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
-    code = code.replace(repr(str(scenario)), repr(str(bad)))
-    proc = subprocess.run(
-        [sys.executable, "-c", code],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        env=dict(os.environ),
-    )
+    proc, _ = run_cli(["edit", str(bad), "--screenshot", str(out)], timeout=300)
     assert proc.returncode == 1
     assert proc.stderr.count("\n") == 1 and "not valid JSON" in proc.stderr

@@ -7,12 +7,11 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
 
-from tests.gui.conftest import open_window, wait_idle
+from tests.gui.conftest import open_window, run_cli, wait_idle
 
 
 def _sphere_obj(path, stretch=(1.0, 1.0, 1.0)):
@@ -23,19 +22,6 @@ def _sphere_obj(path, stretch=(1.0, 1.0, 1.0)):
     m = sphere_levels(4)[-1]
     save_mesh(path, TriMesh(m.vertices * np.asarray(stretch), m.faces))
     return path
-
-
-def _run_cli(args, timeout=120):
-    code = f"import sys; from isochor.app.cli import main; sys.exit(main({list(args)!r}))"
-    t0 = time.perf_counter()
-    proc = subprocess.run(
-        [sys.executable, "-c", code],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        env=dict(os.environ),
-    )
-    return proc, time.perf_counter() - t0
 
 
 def test_screenshot_of_a_model_and_of_a_scenario_at_rest_exits(tmp_path):
@@ -49,7 +35,7 @@ def test_screenshot_of_a_model_and_of_a_scenario_at_rest_exits(tmp_path):
     ).write(at_rest)
     for source in (model, at_rest):
         out = tmp_path / f"{source.stem}.png"
-        proc, seconds = _run_cli(["edit", str(source), "--screenshot", str(out)])
+        proc, seconds = run_cli(["edit", str(source), "--screenshot", str(out)])
         assert proc.returncode == 0, proc.stderr
         assert out.stat().st_size > 10_000
         assert seconds < 60, f"{source.name}: {seconds:.1f} s"
@@ -58,7 +44,7 @@ def test_screenshot_of_a_model_and_of_a_scenario_at_rest_exits(tmp_path):
 
 def test_screenshot_timeout_takes_the_picture_and_says_so(tmp_path):
     out = tmp_path / "late.png"
-    proc, _ = _run_cli(
+    proc, _ = run_cli(
         ["edit", str(_sphere_obj(tmp_path / "b.obj")), "--screenshot", str(out), "--timeout", "0"]
     )
     # the model is at rest, so idle and the zero timeout race: either is a clean exit
