@@ -440,7 +440,7 @@ def _copy_sources(dest: Path) -> None:
     except (OSError, subprocess.SubprocessError):
         files = []
     if not files:
-        shutil.copytree(ROOT, dest, ignore=shutil.ignore_patterns(*_IGNORED))
+        shutil.copytree(ROOT, dest, ignore=shutil.ignore_patterns(*_IGNORED), dirs_exist_ok=True)
         return
     for name in files:
         source = ROOT / name
