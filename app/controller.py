@@ -148,8 +148,7 @@ class EditorSession(QObject):
             if self.activity == "dragging":
                 self.activity = "idle"
             self._pending = (doc.view_nodes(), None)
-            self.stateChanged.emit()
-            self.selectionChanged.emit()
+            self.stateChanged.emit()  # (the window redraws the selection with the state)
             self._solve_if_needed()
 
     # -- edits that are not one rule ---------------------------------------------------------

@@ -194,8 +194,12 @@ class MainWindow(QMainWindow):
         self._status_changed()
 
     def _selection_changed(self) -> None:
-        st = self.state
         self.viewport.set_selection(self.doc.selection)
+        self._show_selection()
+
+    def _show_selection(self) -> None:
+        """The Inspector's selection fields, at the nodes as drawn."""
+        st = self.state
         self.panel.show_selection(
             st.lattice,
             self.doc.selection,
@@ -243,7 +247,7 @@ class MainWindow(QMainWindow):
             )
             self.st_time.setText(f"{1000 * record.elapsed:.0f} ms")
             self.plot.update()
-        self._selection_changed()
+        self._show_selection()  # (the scene moved the selection markers with the nodes)
         self.session.frame_cost = time.perf_counter() - t0 + self.viewport.paint_seconds
         if self.viewport.paints > 0:
             self.session.view_ready()
