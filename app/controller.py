@@ -21,7 +21,6 @@ import numpy as np
 from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtGui import QUndoStack
 
-from ..core.errors import IsochorError
 from .commands import EditCommand
 from .document import Document, Edit, SolveSummary, StateCell, describe_status, plural
 from .worker import SolveWorker
@@ -162,10 +161,6 @@ class EditorSession(QObject):
         self.document.live_nodes = None
         self._pending = (self.document.view_nodes(), None)
         self._solve_if_needed()
-
-    def rebuild_lattice(self, shape) -> None:
-        """Raises :class:`IsochorError` for a shape the lattice cannot have."""
-        self.commit(self.document.edit_lattice(shape))
 
     # -- the drag ----------------------------------------------------------------------------
     def begin_drag(self) -> bool:
@@ -389,6 +384,3 @@ def _prepare(document: Document) -> None:
     surface = document.surface
     surface.level(-1)
     _ = surface.springs
-
-
-__all__ = ["EditorSession", "IsochorError"]

@@ -130,6 +130,8 @@ class MainWindow(QMainWindow):
         s.solveDone.connect(self._solve_done)
         s.failed.connect(lambda message: self.error("The solver stopped", message))
         s.idle.connect(self.idle.emit)
+        # solves start after the view's first paint (queued: not from inside the paint)
+        vp.firstPainted.connect(s.view_ready, Qt.ConnectionType.QueuedConnection)
         s.undo_stack.cleanChanged.connect(self.update_title)
         vp.selectRequested.connect(lambda rows, mode: self.doc.select(rows, mode))
         vp.dragStarted.connect(self._drag_started)
@@ -249,16 +251,6 @@ class MainWindow(QMainWindow):
             self.plot.update()
         self._show_selection()  # (the scene moved the selection markers with the nodes)
         self.session.frame_cost = time.perf_counter() - t0 + self.viewport.paint_seconds
-        if self.viewport.paints > 0:
-            self.session.view_ready()
-
-    def paintEvent(self, ev) -> None:
-        super().paintEvent(ev)
-        QTimer.singleShot(0, self._maybe_ready)
-
-    def _maybe_ready(self) -> None:
-        if self.viewport.paints > 0:
-            self.session.view_ready()
 
     def _solve_started(self) -> None:
         st = self.state

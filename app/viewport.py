@@ -50,6 +50,7 @@ class Viewport(CameraMixin, QtInteractor):
     lockChanged(str) : the axis lock during a drag ("" when free)
     contextMenuRequested(int, QPoint) : a right click on node row (-1: none), global pos
     fileDropped(str) : a model or scenario file was dropped on the view
+    firstPainted() : the view was drawn for the first time
     """
 
     selectRequested = Signal(object, str)
@@ -60,6 +61,7 @@ class Viewport(CameraMixin, QtInteractor):
     lockChanged = Signal(str)
     contextMenuRequested = Signal(int, QPoint)
     fileDropped = Signal(str)
+    firstPainted = Signal()
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent, auto_update=False, multi_samples=0)
@@ -138,6 +140,8 @@ class Viewport(CameraMixin, QtInteractor):
         super().paintGL()
         self.paint_seconds = time.perf_counter() - t0
         self.paints += 1
+        if self.paints == 1:
+            self.firstPainted.emit()
 
     def resizeEvent(self, ev) -> None:
         super().resizeEvent(ev)
