@@ -19,17 +19,25 @@ Only ``edit`` (and no command) imports the GUI; everything else runs without Qt.
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
-import sys
-import time
-from collections.abc import Sequence
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+# Signals first: a Ctrl-C or SIGTERM while the rest is imported is remembered and answered
+# by main() with one line, never a traceback.
+from . import interrupts
 
-from .. import __version__
-from ..core.errors import IsochorError
+interrupts.install()
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import os  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+import traceback  # noqa: E402
+import warnings  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import TYPE_CHECKING, Any, TextIO  # noqa: E402
+
+from .. import __version__  # noqa: E402
+from ..core.errors import IsochorError  # noqa: E402
 
 # One BLAS thread unless the user says otherwise: the lattice products are small and the
 # solver shares the cores with the window; measured under load, a 125-node basis product
@@ -42,33 +50,75 @@ if TYPE_CHECKING:
     from ..core.multilevel import SolveResult
     from ..core.problem import Problem
 
-EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED = 0, 1, 2, 3
+EXIT_INTERNAL = 70  # EX_SOFTWARE: a bug, not the user's doing
+#: set (to anything but "" or "0") for Python's warnings and the traceback of an internal error
+DEBUG_VARIABLE = "ISOCHOR_DEBUG"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status (the console script exits with it)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = _parser().parse_args(argv)
+    """Run the command line; returns the exit status (the console script exits with it).
+
+    Whatever happens, standard error gets at most one line per problem, each starting
+    ``isochor:``, and no temporary file is left behind.
+    """
+    from ..core.atomic import discard_pending
+
+    debug = os.environ.get(DEBUG_VARIABLE, "") not in ("", "0")
     try:
-        return args.run(args)
+        interrupts.arm()
+        with warnings.catch_warnings():
+            if not debug:  # numpy's overflow warnings and the like: never on the user's screen
+                warnings.simplefilter("ignore")
+            args = _parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+            return args.run(args)
     except IsochorError as exc:
         return _fail(exc)
+    except interrupts.Interrupted as exc:
+        return _interrupted(exc.status, exc.name, getattr(exc, "written", ()))
+    except KeyboardInterrupt:
+        return _interrupted(128 + 2, "SIGINT", ())
+    except MemoryError:
+        return _fail("out of memory: the model is too large for this computer")
     except OSError as exc:  # output files: a missing folder, no permission, a full disk
         where = f"{exc.filename}: " if exc.filename else ""
         return _fail(f"{where}{exc.strerror or exc}")
-    except KeyboardInterrupt:
-        print("isochor: interrupted; nothing was written", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except SystemExit as exc:  # --help, --version, a usage error: argparse has spoken
+        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    except Exception as exc:
+        if debug:
+            traceback.print_exc()
+        hint = "" if debug else f" (set {DEBUG_VARIABLE}=1 for the details)"
+        return _fail(f"internal error: {type(exc).__name__}: {exc}{hint}", EXIT_INTERNAL)
+    finally:
+        discard_pending()
 
 
-def _fail(message: Any) -> int:
-    text = " ".join(str(message).split())  # always one line
+def _fail(message: Any, status: int = EXIT_ERROR) -> int:
+    text = " ".join(str(message).replace("\0", " ").split())  # always one line
     print(f"isochor: {text}", file=sys.stderr)
-    return EXIT_ERROR
+    return status
+
+
+def _interrupted(status: int, name: str, written: Sequence[Path]) -> int:
+    if written:
+        done = ", ".join(str(p) for p in written)
+        print(f"isochor: interrupted ({name}) after writing {done}", file=sys.stderr)
+    else:
+        print(f"isochor: interrupted ({name}); nothing was written", file=sys.stderr)
+    return status
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (exit 2), like every other message."""
+
+    def error(self, message: str):
+        _fail(f"{message} (see '{self.prog} --help')")
+        raise SystemExit(EXIT_USAGE)
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="isochor",
         description="Volume-preserving free-form deformation (Hirota, Maheshwari, Lin 1999). "
         "Without a command, opens the editor.",
@@ -139,22 +189,29 @@ def _examples(args: argparse.Namespace) -> int:
 
 # -- solve --------------------------------------------------------------------------------
 def _solve(args: argparse.Namespace) -> int:
-    from ..core.atomic import atomic_write_bytes
-    from ..core.formats import WRITE_FORMATS
+    from ..core.atomic import check_outputs, write_outputs
+    from ..core.formats import WRITE_FORMATS, listing
     from ..core.mesh import TriMesh
     from ..core.meshio import mesh_bytes
     from ..core.problem import build
     from ..core.repair import count_bodies
     from ..core.scenario import Scenario
 
-    _check_output(args.out, WRITE_FORMATS)
-    _check_output(args.report, None)
     if args.example is not None:
         from ..core.examples import example_scenario
 
         scenario, source = example_scenario(args.example), f"example {args.example}"
+        inputs = []
     else:
         scenario, source = Scenario.read(args.scenario), str(args.scenario)
+        inputs = [(args.scenario, "the scenario")]
+    if "path" in scenario.model:
+        inputs.append((scenario.model_path(), "the model"))
+    # every output is checked against the inputs and the others before any work
+    wanted = [(p, role) for p, role in ((args.out, "--out"), (args.report, "--report")) if p]
+    outputs = check_outputs(wanted, inputs)
+    if args.out is not None and args.out.suffix.lower() not in WRITE_FORMATS:
+        raise IsochorError(f"{args.out}: --out must end in {listing(WRITE_FORMATS)}")
     t0 = time.perf_counter()
     problem = build(scenario)
     for w in problem.warnings:
@@ -165,32 +222,25 @@ def _solve(args: argparse.Namespace) -> int:
     surface = problem.surface
     deformed = TriMesh(surface.deform(result.nodes), surface.full.faces)
     report = make_report(problem, result, source, total, count_bodies(surface.full))
-    # everything is computed before anything is written: an error or Ctrl-C up to here
-    # leaves no file, and each file is replaced atomically
+    # everything is computed before anything is written: an error or a signal up to here
+    # leaves no file; then the outputs are written as a set, all or none
     files = []
-    if args.out is not None:
-        files.append((args.out, mesh_bytes(deformed, args.out.suffix.lower())))
-    if args.report is not None:
-        files.append((args.report, (json.dumps(report, indent=2) + "\n").encode("utf-8")))
-    for path, data in files:
-        atomic_write_bytes(path, data)
+    for o in outputs:
+        if o.role == "--out":
+            files.append((o, mesh_bytes(deformed, o.path.suffix.lower())))
+        else:
+            files.append((o, (json.dumps(report, indent=2, allow_nan=False) + "\n").encode()))
+    try:
+        with interrupts.deferred():
+            write_outputs(files)
+    except interrupts.Interrupted as exc:
+        exc.written = [o.path for o in outputs]
+        raise
     _summary(result, args)
     if not result.converged:
         print(f"isochor: the solve did not converge: {result.message}", file=sys.stderr)
         return EXIT_NOT_CONVERGED
     return EXIT_OK
-
-
-def _check_output(path: Path | None, kinds: Sequence[str] | None) -> None:
-    """Fail before the solve, not after it, on an output that cannot be written."""
-    if path is None:
-        return
-    if path.is_dir():
-        raise IsochorError(f"{path}: is a folder, not a file name")
-    if kinds is not None and path.suffix.lower() not in kinds:
-        raise IsochorError(f"{path}: the file name must end in {', '.join(kinds)}")
-    if not path.parent.is_dir():
-        raise IsochorError(f"{path}: the folder {path.parent} does not exist")
 
 
 def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:

@@ -23,7 +23,14 @@ from .errors import IsochorError
 from .formats import READ_FORMATS, WRITE_FORMATS, listing
 from .mesh import TriMesh
 from .repair import clean_closed_surface
+from .validate import MAX_COORDINATE
 from .volume import signed_volume
+
+#: the largest model file read (a safeguard: a huge or sparse file fails at once, with one
+#: line, instead of filling the memory)
+MAX_MODEL_BYTES = 2 * 2**30
+#: bytes looked at to tell whether a file can be of its format at all
+SNIFF_BYTES = 64 * 1024
 
 
 @dataclass(frozen=True)
@@ -77,15 +84,26 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
             f"{path.name}: unknown model format {path.suffix or '(no extension)'!r}; "
             f"Isochor reads {known}"
         )
-    if not path.exists():
-        raise IsochorError(f"{path}: no such file")
-    if not path.is_file():
-        raise IsochorError(f"{path}: not a file")
     try:
+        if not path.exists():
+            what = "a loop of symbolic links" if path.is_symlink() else "no such file"
+            raise IsochorError(f"{path}: {what}")
+        if not path.is_file():
+            raise IsochorError(f"{path}: not a file")
+        size = path.stat().st_size
+        if size > MAX_MODEL_BYTES:
+            raise IsochorError(
+                f"{path.name}: {size / 2**30:.1f} GB is more than Isochor reads "
+                f"({MAX_MODEL_BYTES / 2**30:.0f} GB, some 40 million triangles)"
+            )
         with open(path, "rb") as fh:
+            _sniff(path, kind, fh.read(SNIFF_BYTES), size)
+            fh.seek(0)
             data = fh.read()
     except OSError as exc:
         raise IsochorError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    except ValueError:  # a NUL byte in the name
+        raise IsochorError(f"{str(path)!r}: not a valid file name") from None
     if not data or data.isspace():
         raise IsochorError(f"{path.name}: the file is empty")
     import trimesh  # heavy: imported on the first read
@@ -111,9 +129,40 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise IsochorError(f"{path.name}: not a triangle mesh")
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise IsochorError(f"{path.name}: a face refers to a vertex that does not exist")
-    if not np.all(np.isfinite(vertices[faces])):
+    used = vertices[faces]
+    if not np.all(np.isfinite(used)):
         raise IsochorError(f"{path.name}: a vertex has a coordinate that is not a number")
+    largest = float(np.abs(used).max())
+    if largest > MAX_COORDINATE:
+        raise IsochorError(
+            f"{path.name}: a vertex coordinate of {largest:.3g} is beyond "
+            f"+-{MAX_COORDINATE:g} (a damaged file?)"
+        )
     return vertices, faces
+
+
+def _sniff(path: Path, kind: str, head: bytes, size: int) -> None:
+    """Refuse at once, from its first bytes, a file that cannot be of its format (a file
+    of zeros, a renamed image), before a parser spends memory and time on all of it."""
+    if not head.strip():
+        return  # empty or blank: said by the caller
+    text_head = head.lstrip(b"\xef\xbb\xbf")  # a UTF-8 byte order mark
+    if kind == "ply":
+        if not text_head.startswith(b"ply"):
+            raise IsochorError(f"{path.name}: not a PLY file (it does not start with 'ply')")
+        if b"end_header" not in head and size > len(head):
+            raise IsochorError(f"{path.name}: not a PLY file (no end_header in its first bytes)")
+    elif kind == "stl":
+        ascii_stl = text_head.lstrip().startswith(b"solid") and b"\0" not in head
+        if not ascii_stl and len(head) >= 84:
+            count = int(np.frombuffer(head[80:84], "<u4")[0])
+            if count == 0 or 84 + 50 * count > size:
+                raise IsochorError(
+                    f"{path.name}: not a binary STL file: its header says {count} "
+                    f"triangle(s), which need {84 + 50 * count} bytes, and it has {size}"
+                )
+    elif b"\0" in head:
+        raise IsochorError(f"{path.name}: not a {kind.upper()} file (it is not text)")
 
 
 # -- writing ----------------------------------------------------------------------------------

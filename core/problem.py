@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import IsochorError
 from .lattice import Lattice
 from .mesh import TriMesh
 from .meshio import load_mesh
@@ -50,12 +51,24 @@ def load_levels(path: str | Path) -> tuple[list[TriMesh], list[str]]:
     return build_pyramid(loaded.mesh), list(loaded.warnings)
 
 
+#: a move may take a node at most this many lattice sizes away (a bigger one is a mistake
+#: of units or of typing, and its numbers would overflow long before it meant anything)
+MAX_MOVE = 1000.0
+
+
 def model_levels(scenario: Scenario, loader: LevelLoader | None = None):
     """The level pyramid and load warnings of the scenario's model."""
     if "builtin" in scenario.model:
         params = {k: v for k, v in scenario.model.items() if k != "builtin"}
         return builtin_levels(scenario.model["builtin"], **params), []
-    return (loader or load_levels)(scenario.model_path())
+    path = scenario.model_path()
+    if not path.exists():
+        what = "a loop of symbolic links" if path.is_symlink() else "no such file"
+        where = f"{scenario.source}: " if scenario.source is not None else ""
+        raise IsochorError(
+            f"{where}model.path {scenario.model['path']!r}: {what} (looked for {path})"
+        )
+    return (loader or load_levels)(path)
 
 
 def build(
@@ -73,10 +86,16 @@ def build(
         lattice = Lattice(scenario.lattice_nodes, scenario.frame[0], scenario.frame[1])
     nodes = lattice.rest_nodes.copy()
     fixed = np.zeros(lattice.n_nodes, dtype=bool)
-    for mv in scenario.moves:
+    for n, mv in enumerate(scenario.moves):
         r = lattice.index(*mv.node)
         nodes[r] = (nodes[r] + mv.by) if mv.by is not None else mv.to
         fixed[r] = True
+        distance = float(np.linalg.norm(nodes[r] - lattice.rest_nodes[r]))
+        if distance > MAX_MOVE * lattice.size:
+            raise IsochorError(
+                f"moves[{n}]: moves node {list(mv.node)} by {distance:.3g}, more than "
+                f"{MAX_MOVE:g} times the lattice's size ({lattice.size:.3g}); a wrong unit?"
+            )
     for p in scenario.pins:
         fixed[lattice.index(*p)] = True
     return Problem(scenario, EmbeddedSurface(lattice, levels), nodes, fixed, list(warnings or []))

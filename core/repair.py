@@ -3,7 +3,8 @@
 :func:`clean_closed_surface` runs the steps in order:
 
 1. coincident vertices are welded by position (UV and normal seams, STL's repeated corners),
-   within 1e-9 of the model size, so the weld does not depend on the model's units;
+   within 1e-9 of the model size (at most 10^4 typical edges, so one stray far vertex does
+   not weld the rest together), so the weld does not depend on the model's units;
 2. triangles with a repeated corner are dropped, and so are duplicate triangles (two
    copies of one triangle wound opposite ways cancel, like a double wall; same-way copies
    are kept once); unreferenced vertices are dropped;
@@ -12,7 +13,11 @@
    vertex (the paper's cow has one) is fine: only edges matter for the volume;
 4. inconsistent winding is repaired by flipping the smaller side of every body (warning);
 5. each body is turned to face outward, or inward for a cavity inside another body, so the
-   signed volume is the solid's volume (warning when anything was flipped).
+   signed volume is the solid's volume (warning when anything was flipped; bodies that
+   overlap are accepted with a warning that their common part counts twice; see
+   :mod:`isochor.core.bodies`);
+6. a surface whose volume is lost in rounding is flat and refused; a few vertices far from
+   all the others (a damaged file) are accepted with a warning.
 
 The topology helpers (:class:`EdgeReport`, :func:`body_labels`, ...) serve the level
 pyramid too. Nothing here reads or writes files.
@@ -26,6 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .bodies import arrange, orient
 from .errors import IsochorError
 from .mesh import TriMesh
 from .volume import face_volumes, signed_volume
@@ -33,8 +39,8 @@ from .volume import face_volumes, signed_volume
 #: vertices closer than this fraction of the model size are one vertex
 WELD_TOLERANCE = 1e-9
 
-#: above this many (point, triangle) pairs the cavity test is skipped (each body faces out)
-NESTING_BUDGET = 50_000_000
+#: a vertex farther than this many typical distances from the model's middle is "far"
+FAR = 1000.0
 
 
 # -- cleaning ---------------------------------------------------------------------------------
@@ -79,18 +85,56 @@ def clean_closed_surface(vertices: np.ndarray, faces: np.ndarray) -> tuple[TriMe
             "match their neighbours."
         )
     labels, n_bodies = body_labels(faces, report)
-    faces, inward = orient_bodies(vertices, faces, labels, n_bodies)
-    if inward:
-        what = (
-            "The surface faced inward (negative volume)"
-            if n_bodies == 1
-            else f"{inward} of {n_bodies} bodies faced the wrong way"
+    arrangement = arrange(vertices, faces, labels, n_bodies)
+    faces, turned_out, turned_in = orient(vertices, faces, labels, arrangement.depth)
+    warns += _orientation_words(n_bodies, turned_out, turned_in)
+    for a, b in arrangement.overlaps:
+        warns.append(
+            f"Bodies {a + 1} and {b + 1} (of {n_bodies}, in file order) overlap: the volume "
+            "counts the part they share twice."
         )
-        warns.append(f"{what}; flipped to face outward.")
-    volume = signed_volume(vertices, faces)
-    if not volume > 1e-12 * np.ptp(vertices, axis=0).max() ** 3:
+    if not arrangement.checked:
+        warns.append(
+            f"{n_bodies} bodies: too large to check which lie inside or across others; "
+            "each is taken as a separate solid facing outward."
+        )
+    # flat: the signed volume is lost in the rounding of the triangles' own volumes
+    middle = np.median(vertices, axis=0)
+    scale = np.abs(face_volumes(vertices - middle, faces)).sum()
+    if not signed_volume(vertices, faces) > 1e-9 * scale:
         raise IsochorError("the surface encloses no volume (it is flat)")
+    far = far_vertices(vertices)
+    if far:
+        warns.append(
+            f"{far} vertex(es) lie more than {FAR:g} times the model's typical size away "
+            "from the rest (a damaged file?); the lattice is fitted around them too."
+        )
     return TriMesh(vertices, faces), warns, n_bodies
+
+
+def _orientation_words(n_bodies: int, turned_out: int, turned_in: int) -> list[str]:
+    if n_bodies == 1 and turned_out:
+        return ["The surface faced inward (negative volume); turned to face outward."]
+    words = []
+    if turned_out:
+        words.append(f"{turned_out} of {n_bodies} bodies faced inward; turned to face outward.")
+    if turned_in:
+        words.append(
+            f"{turned_in} cavit{'y' if turned_in == 1 else 'ies'} (a body inside another) "
+            "faced outward; turned to face inward, so it is hollow."
+        )
+    return words
+
+
+def far_vertices(vertices: np.ndarray) -> int:
+    """How many vertices lie more than :data:`FAR` times the median distance from the
+    median point: a stray vertex of a damaged file, not part of the shape."""
+    distance = np.linalg.norm(vertices - np.median(vertices, axis=0), axis=1)
+    typical = float(np.median(distance))
+    if typical <= 0:
+        return 0
+    far = int(np.sum(distance > FAR * typical))
+    return far if far <= max(1, len(vertices) // 100) else 0
 
 
 def weld(
@@ -106,7 +150,13 @@ def weld(
     used = np.flatnonzero(mask)
     v = vertices[used]
     lo = v.min(axis=0)
+    # the model's size, but no more than 10^4 typical edges: one stray far vertex must not
+    # make the weld swallow the whole model
     size = float(np.ptp(v, axis=0).max())
+    edges = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 0]], axis=1)
+    typical = float(np.median(edges)) if len(edges) else 0.0
+    if typical > 0:
+        size = min(size, 1e4 * typical)
     step = size * tolerance if size > 0 else 1.0
     keys = np.round((v - lo) / step).astype(np.int64)
     inverse, first, _ = group_rows(keys)
@@ -299,82 +349,3 @@ def fix_winding(faces: np.ndarray, report: EdgeReport) -> tuple[np.ndarray, int]
     out = faces.copy()
     out[flip] = out[flip][:, ::-1]
     return out, int(flip.sum())
-
-
-def orient_bodies(
-    vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray, n_bodies: int
-) -> tuple[np.ndarray, int]:
-    """Turn every body so that the total signed volume is the solid's volume.
-
-    A body inside an even number of others (usually none) faces outward; one inside an odd
-    number (a cavity) faces inward. Returns (faces, number of bodies flipped).
-    """
-    volumes = np.bincount(labels, weights=face_volumes(vertices, faces), minlength=n_bodies)
-    if n_bodies > 1:
-        depth = nesting_depth(vertices, faces, labels, n_bodies)
-    else:
-        depth = np.zeros(1, dtype=np.int64)
-    wanted = np.where(depth % 2 == 0, 1.0, -1.0)
-    flip_body = volumes * wanted < 0
-    if not flip_body.any():
-        return faces, 0
-    flip = flip_body[labels]
-    out = faces.copy()
-    out[flip] = out[flip][:, ::-1]
-    return out, int(flip_body.sum())
-
-
-def nesting_depth(
-    vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray, n_bodies: int
-) -> np.ndarray:
-    """(bodies,) how many other bodies contain each body (by the winding number of one
-    triangle centre of the body). Zero everywhere when the test would be too costly."""
-    depth = np.zeros(n_bodies, dtype=np.int64)
-    tri = vertices[faces]
-    lo = np.full((n_bodies, 3), np.inf)
-    hi = np.full((n_bodies, 3), -np.inf)
-    np.minimum.at(lo, labels, tri.min(axis=1))
-    np.maximum.at(hi, labels, tri.max(axis=1))
-    first = np.unique(labels, return_index=True)[1]
-    probe = tri[first].mean(axis=1)  # (bodies, 3): one triangle centre per body
-    inside = np.all((lo[None] <= lo[:, None]) & (hi[:, None] <= hi[None]), axis=2)
-    np.fill_diagonal(inside, False)  # inside[b, a]: box of b within box of a
-    pairs = np.argwhere(inside)
-    counts = np.bincount(labels, minlength=n_bodies)
-    if counts[pairs[:, 1]].sum() > NESTING_BUDGET:
-        return depth
-    order = np.argsort(labels, kind="stable")
-    starts = np.concatenate([[0], np.cumsum(counts)])
-    for a in np.unique(pairs[:, 1]):
-        inner = pairs[pairs[:, 1] == a, 0]
-        body = tri[order[starts[a] : starts[a + 1]]]
-        w = winding_numbers(probe[inner], body)
-        depth[inner[np.abs(w) > 0.5]] += 1
-    return depth
-
-
-def winding_numbers(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Generalised winding number of each point with respect to a closed triangle set.
-
-    Parameters
-    ----------
-    points : (p, 3)
-    triangles : (t, 3, 3) corner positions
-
-    Returns
-    -------
-    (p,) about +-1 inside, 0 outside (sign = the triangles' orientation)
-    """
-    out = np.empty(len(points))
-    for i, p in enumerate(points):  # solid angles, Van Oosterom and Strackee (1983)
-        a, b, c = (triangles[:, k] - p for k in range(3))
-        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-        num = np.einsum("ij,ij->i", a, np.cross(b, c))
-        den = (
-            la * lb * lc
-            + np.einsum("ij,ij->i", a, b) * lc
-            + np.einsum("ij,ij->i", a, c) * lb
-            + np.einsum("ij,ij->i", b, c) * la
-        )
-        out[i] = np.sum(np.arctan2(num, den)) / (2 * np.pi)
-    return out

@@ -32,16 +32,23 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from .atomic import atomic_write_text
 from .defaults import LATTICE_NODES, PADDING, TOL_NODES, TOL_VOLUME
 from .errors import IsochorError
 from .formats import is_model
 from .lattice import MAX_NODES, MIN_NODES
+from .validate import MAX_COORDINATE, number
 
 FORMAT = "isochor-scenario"
 VERSION = 1
+
+#: a scenario is a few kilobytes; anything larger than this is not one
+MAX_SCENARIO_BYTES = 16 * 2**20
+#: longest integer literal read (Python refuses more than 4300 digits, and no field needs 20)
+MAX_DIGITS = 100
+#: the volume ratio, the tolerances: the range the solver is meant for
+RATIO_RANGE = (1e-6, 1e6)
+TOLERANCE_RANGE = (1e-12, 0.5)
 
 
 @dataclass(frozen=True)
@@ -65,6 +72,8 @@ class Scenario:
     tol_volume: float = TOL_VOLUME
     tol_nodes: float = TOL_NODES
     base_dir: Path | None = field(default=None, compare=False)
+    #: the file it was read from, for messages (None when built in memory)
+    source: Path | None = field(default=None, compare=False)
 
     # -- JSON ---------------------------------------------------------------------------
     @classmethod
@@ -97,6 +106,8 @@ class Scenario:
             _check_keys(model, "model", {"path"}, {"path"})
             if not isinstance(model["path"], str) or not model["path"]:
                 raise IsochorError("model.path: must be a non-empty string")
+            if "\0" in model["path"]:
+                raise IsochorError("model.path: not a valid file name (it holds a NUL byte)")
         elif not isinstance(model["builtin"], str):
             raise IsochorError("model.builtin: must be a string")
         lat = doc.get("lattice", {})
@@ -104,9 +115,11 @@ class Scenario:
         shape = _int_triple(lat.get("nodes", list(LATTICE_NODES)), "lattice.nodes")
         if not all(MIN_NODES <= s <= MAX_NODES for s in shape):
             raise IsochorError(f"lattice.nodes: each axis needs {MIN_NODES} to {MAX_NODES} nodes")
-        padding = _number(lat.get("padding", PADDING), "lattice.padding")
+        padding = number(lat.get("padding", PADDING), "lattice.padding")
         if not 0 < padding <= 10:
-            raise IsochorError("lattice.padding: must be positive (a fraction of the extent)")
+            raise IsochorError(
+                "lattice.padding: must be more than 0 and at most 10 (a fraction of the extent)"
+            )
         frame = None
         if "frame" in lat:
             fr = lat["frame"]
@@ -134,15 +147,11 @@ class Scenario:
         pins = tuple(
             _node(p, f"pins[{n}]", shape) for n, p in enumerate(_list(doc.get("pins", []), "pins"))
         )
-        ratio = _number(doc.get("target_volume_ratio", 1.0), "target_volume_ratio")
-        if not ratio > 0:
-            raise IsochorError("target_volume_ratio: must be positive")
+        ratio = number(doc.get("target_volume_ratio", 1.0), "target_volume_ratio", RATIO_RANGE)
         tol = doc.get("tolerance", {})
         _check_keys(tol, "tolerance", {"volume", "nodes"}, set())
-        tv = _number(tol.get("volume", TOL_VOLUME), "tolerance.volume")
-        tn = _number(tol.get("nodes", TOL_NODES), "tolerance.nodes")
-        if not (0 < tv < 1 and 0 < tn < 1):
-            raise IsochorError("tolerance: volume and nodes must be between 0 and 1")
+        tv = number(tol.get("volume", TOL_VOLUME), "tolerance.volume", TOLERANCE_RANGE)
+        tn = number(tol.get("nodes", TOL_NODES), "tolerance.nodes", TOLERANCE_RANGE)
         return cls(
             dict(model),
             shape,
@@ -194,19 +203,28 @@ class Scenario:
                 "or name it as model.path in a scenario"
             )
         try:
+            if not path.is_file():
+                what = "no such scenario file" if not path.exists() else "not a file"
+                raise IsochorError(f"{path}: {what}")
+            size = path.stat().st_size
+            if size > MAX_SCENARIO_BYTES:
+                raise IsochorError(
+                    f"{path}: {size / 2**20:.0f} MB is too large to be a scenario "
+                    f"(at most {MAX_SCENARIO_BYTES // 2**20} MB)"
+                )
             text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise IsochorError(f"{path}: no such scenario file") from None
-        except (OSError, UnicodeDecodeError) as exc:
+        except (OSError, ValueError) as exc:  # ValueError: a NUL byte, a bad encoding
             raise IsochorError(f"{path}: cannot read the scenario ({exc})") from None
         try:
-            doc = json.loads(text)
+            doc = json.loads(text, parse_int=_parse_int, parse_constant=_parse_constant)
         except json.JSONDecodeError as exc:
             raise IsochorError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
         except RecursionError:
             raise IsochorError(f"{path}: not a scenario (nested too deeply)") from None
+        except IsochorError as exc:
+            raise IsochorError(f"{path}: not valid JSON ({exc})") from None
         try:
-            return cls.from_dict(doc, path.parent)
+            return replace(cls.from_dict(doc, path.parent), source=path)
         except IsochorError as exc:
             raise IsochorError(f"{path}: {exc}") from None
 
@@ -257,16 +275,21 @@ def _list(obj: Any, where: str) -> list:
     return obj
 
 
-def _number(obj: Any, where: str) -> float:
-    if isinstance(obj, bool) or not isinstance(obj, (int, float)) or not np.isfinite(obj):
-        raise IsochorError(f"{where}: must be a finite number, got {obj!r}")
-    return float(obj)
+def _parse_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_DIGITS:
+        raise IsochorError(f"a number has {len(text.lstrip('-'))} digits")
+    return int(text)
+
+
+def _parse_constant(name: str) -> float:
+    raise IsochorError(f"{name} is not a JSON number")
 
 
 def _vec(obj: Any, where: str) -> tuple[float, float, float]:
     if not isinstance(obj, list) or len(obj) != 3:
         raise IsochorError(f"{where}: must be a list of three numbers")
-    return tuple(_number(x, where) for x in obj)
+    limit = (-MAX_COORDINATE, MAX_COORDINATE)
+    return tuple(number(x, where, limit) for x in obj)
 
 
 def _int_triple(obj: Any, where: str) -> tuple[int, int, int]:

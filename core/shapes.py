@@ -21,6 +21,7 @@ import numpy as np
 from .errors import IsochorError
 from .lattice import Lattice
 from .mesh import TriMesh
+from .validate import number
 from .volume import signed_volume
 
 
@@ -166,6 +167,8 @@ def _outward(mesh: TriMesh) -> TriMesh:
 
 #: Most levels a built-in shape may have (the torus's 9th has about a million triangles).
 MAX_LEVELS = 9
+#: radii of the built-in shapes (in model units)
+SIZE_RANGE = (1e-6, 1e6)
 
 #: name -> (level builder, description)
 BUILTINS: dict[str, tuple[Callable[..., list[TriMesh]], str]] = {
@@ -182,11 +185,17 @@ def builtin_levels(name: str, **params) -> list[TriMesh]:
             f"Unknown built-in shape {name!r}; the built-in shapes are {', '.join(BUILTINS)}."
         )
     for key, value in params.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-            raise IsochorError(f"model.{key}: must be a positive number, got {value!r}")
+        bounds = (1, MAX_LEVELS) if key == "n_levels" else SIZE_RANGE
+        params[key] = number(value, f"model.{key}", bounds)
     n_levels = params.get("n_levels", 1)
-    if n_levels != int(n_levels) or not 1 <= n_levels <= MAX_LEVELS:
+    if n_levels != int(n_levels):
         raise IsochorError(f"model.n_levels: must be a whole number from 1 to {MAX_LEVELS}")
+    if "n_levels" in params:
+        params["n_levels"] = int(n_levels)
+    if name == "torus" and params.get("minor", 0.4) >= params.get("major", 1.0):
+        raise IsochorError(
+            "model.minor: must be smaller than model.major (the torus would cut itself)"
+        )
     try:
         return BUILTINS[name][0](**params)
     except TypeError as exc:

@@ -268,7 +268,7 @@ def test_save_refuses_unknown_formats_and_missing_folders(tmp_path):
     mesh = icosphere(1)
     with pytest.raises(IsochorError, match="OBJ, PLY, STL"):
         save_mesh(tmp_path / "out.off", mesh)
-    with pytest.raises(OSError):
+    with pytest.raises(IsochorError, match="does not exist"):
         save_mesh(tmp_path / "no" / "such" / "out.ply", mesh)
     assert list(tmp_path.iterdir()) == []
 

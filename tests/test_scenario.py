@@ -189,7 +189,7 @@ def test_relative_model_paths_are_relative_to_the_scenario_file(tmp_path, club_f
 def test_missing_model_file_names_it(tmp_path):
     scene = tmp_path / "s.json"
     scene.write_text(json.dumps(changed("model.path", "nowhere.obj")))
-    with pytest.raises(IsochorError, match="nowhere.obj: no such file"):
+    with pytest.raises(IsochorError, match="model.path 'nowhere.obj': no such file"):
         build(Scenario.read(scene))
 
 
