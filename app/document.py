@@ -382,7 +382,10 @@ class Document:
         return TriMesh(self.surface.deform(nodes), self.surface.full.faces)
 
     def export(self, path: str | Path, nodes: np.ndarray | None = None) -> None:
-        save_mesh(path, self.deformed_mesh(nodes))
+        """Write the deformed mesh; never over the model file it was made from."""
+        sc = self.state.problem.scenario
+        model = [(sc.model_path(), "the model")] if "path" in sc.model else []
+        save_mesh(path, self.deformed_mesh(nodes), inputs=model)
 
 
 def _key_of(scenario: Scenario) -> tuple:

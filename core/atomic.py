@@ -76,7 +76,7 @@ def check_outputs(
         The first problem found, as one sentence naming the user's path.
     """
     checked: list[Output] = []
-    known_inputs = [(Path(p), role) for p, role in inputs]
+    known_inputs = [(p, role) for p, role in inputs if "\0" not in str(p)]
     for raw, role in outputs:
         path = Path(raw)
         target = _target(path)
@@ -87,7 +87,7 @@ def check_outputs(
                     f"{path}: {role} and {other.role} name the same file; give each its own"
                 )
         for source, what in known_inputs:
-            if _same_file(_target(source), target):
+            if _same_file(Path(os.path.realpath(source)), target):
                 raise IsochorError(
                     f"{path}: {role} would overwrite {what} it is made from; "
                     "choose another file name"
@@ -100,6 +100,8 @@ def check_outputs(
 
 def _target(path: Path) -> Path:
     """Where writing ``path`` puts the bytes: the file a symbolic link (chain) names."""
+    if "\0" in str(path):
+        raise IsochorError(f"{str(path)!r}: not a valid file name (it holds a NUL byte)")
     try:
         absolute = Path(os.path.abspath(path))
         if not absolute.is_symlink():
@@ -108,8 +110,6 @@ def _target(path: Path) -> Path:
         if real.is_symlink():
             raise IsochorError(f"{path}: a loop of symbolic links; give a file name")
         return real
-    except ValueError:  # an embedded NUL byte
-        raise IsochorError(f"{str(path)!r}: not a valid file name (it holds a NUL byte)") from None
     except OSError as exc:
         raise IsochorError(f"{path}: {exc.strerror or exc}") from None
 
@@ -201,10 +201,14 @@ def write_outputs(items: Sequence[tuple[Output, bytes]]) -> None:
         _sync_folder(folder)
 
 
-def atomic_write_bytes(path: str | Path, data: bytes) -> None:
+def atomic_write_bytes(
+    path: str | Path, data: bytes, inputs: Iterable[tuple[str | Path, str]] = ()
+) -> None:
     """Write one file atomically (see :func:`write_outputs`); a symbolic link writes its
-    target. Raises :class:`IsochorError` naming ``path`` when it cannot be written."""
-    write_outputs([(check_outputs([(path, "the file")], probe=False)[0], data)])
+    target. ``inputs`` are ``(path, role)`` of files it must not replace (see
+    :func:`check_outputs`). Raises :class:`IsochorError` naming ``path`` when it cannot be
+    written."""
+    write_outputs([(check_outputs([(path, "the file")], inputs, probe=False)[0], data)])
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:
@@ -228,11 +232,15 @@ def discard_pending() -> None:
 def _write_temp(target: Path, data: bytes) -> str:
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     PENDING.add(tmp)
-    with os.fdopen(fd, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.chmod(tmp, _file_mode(target))
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, _file_mode(target))
+    except BaseException:
+        discard([tmp])
+        raise
     return tmp
 
 

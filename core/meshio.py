@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import warnings
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -166,18 +167,22 @@ def _sniff(path: Path, kind: str, head: bytes, size: int) -> None:
 
 
 # -- writing ----------------------------------------------------------------------------------
-def save_mesh(path: str | Path, mesh: TriMesh) -> None:
+def save_mesh(
+    path: str | Path, mesh: TriMesh, inputs: Iterable[tuple[str | Path, str]] = ()
+) -> None:
     """Write ``mesh`` as OBJ, PLY or STL (by the extension), atomically.
 
     OBJ keeps every digit (``%.17g``); PLY is binary with float64 vertices; STL is binary
     with float32 coordinates, as the format defines.
 
+    ``inputs``: ``(path, role)`` of files the mesh must not replace (the model it was
+    made from), see :func:`isochor.core.atomic.check_outputs`.
+
     Raises
     ------
     IsochorError
-        An unsupported extension.
-    OSError
-        The folder does not exist or cannot be written.
+        An unsupported extension; a folder that does not exist or cannot be written; a
+        path that names one of ``inputs``, a folder or a device.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -187,7 +192,7 @@ def save_mesh(path: str | Path, mesh: TriMesh) -> None:
             f"{path.name}: cannot write {suffix or 'a file without extension'};"
             f" use one of {known} (by the file extension)"
         )
-    atomic_write_bytes(path, mesh_bytes(mesh, suffix))
+    atomic_write_bytes(path, mesh_bytes(mesh, suffix), inputs)
 
 
 def mesh_bytes(mesh: TriMesh, suffix: str) -> bytes:

@@ -16,7 +16,7 @@ from isochor.core.meshio import load_mesh, mesh_bytes, save_mesh
 from isochor.core.problem import load_levels
 from isochor.core.repair import EdgeReport, clean_closed_surface, count_bodies
 from isochor.core.volume import signed_volume
-from tests.models import CLOSED, OPEN, icosphere, joined, model, trimesh_volume
+from tests.models import CLOSED, OPEN, box, icosphere, joined, model, trimesh_volume
 
 
 def write_obj(path, mesh: TriMesh) -> None:
@@ -137,6 +137,64 @@ def test_a_cavity_is_subtracted_not_added(tmp_path):
     assert loaded.bodies == 2
     assert loaded.volume == pytest.approx(volume(outer) - volume(inner), rel=1e-12)
     assert len(loaded.warnings) == 1
+    assert "turned to face inward" in loaded.warnings[0]  # not "outward": it is a cavity
+
+
+def test_overlapping_bodies_load_with_a_warning_that_the_volume_counts_twice(tmp_path):
+    a, b = icosphere(3, 1.0), icosphere(3, 1.0, center=(1.2, 0, 0))
+    write_obj(tmp_path / "overlap.obj", joined(a, b))
+    loaded = load_mesh(tmp_path / "overlap.obj")
+    assert loaded.bodies == 2
+    assert loaded.volume == pytest.approx(volume(a) + volume(b), rel=1e-12)
+    assert [w for w in loaded.warnings if "overlap" in w and "twice" in w]
+    # apart, nested or crossing: only the crossing pair is reported
+    crossing = joined(
+        TriMesh(box((4, 1, 1)).vertices - (2, 0.5, 0.5), box().faces),
+        TriMesh(box((1, 4, 1)).vertices - (0.5, 2, 0.5), box().faces),  # a plus sign
+        icosphere(2, 0.5, center=(9, 0, 0)),
+    )
+    write_obj(tmp_path / "plus.obj", crossing)
+    words = [w for w in load_mesh(tmp_path / "plus.obj").warnings if "overlap" in w]
+    assert words == [
+        "Bodies 1 and 2 (of 3, in file order) overlap: the volume counts the part they share twice."
+    ]
+    write_obj(tmp_path / "apart.obj", joined(a, icosphere(3, 1.0, center=(2.5, 0, 0))))
+    assert load_mesh(tmp_path / "apart.obj").warnings == []
+
+
+@pytest.mark.parametrize("far", [1e4, 1e9, 1e12])
+def test_one_far_vertex_is_neither_flat_nor_open_but_said(tmp_path, far):
+    sphere = icosphere(3)
+    vertices = sphere.vertices.copy()
+    vertices[5] *= far  # a spike: still closed, still a solid
+    write_obj(tmp_path / "spike.obj", TriMesh(vertices, sphere.faces))
+    loaded = load_mesh(tmp_path / "spike.obj")
+    assert loaded.mesh.n_faces == sphere.n_faces  # nothing welded away
+    assert loaded.volume == pytest.approx(signed_volume(vertices, sphere.faces), rel=1e-9)
+    assert [w for w in loaded.warnings if "1 vertex(es) lie more than" in w]
+
+
+def test_files_that_cannot_be_of_their_format_fail_at_once(tmp_path, monkeypatch):
+    import isochor.core.meshio as meshio
+
+    for name in ("zeros.ply", "zeros.stl", "zeros.obj", "zeros.off"):
+        with open(tmp_path / name, "wb") as fh:
+            fh.truncate(50 * 2**20)  # sparse: 50 MB of zero bytes
+        with pytest.raises(IsochorError, match=f"{name}: not a") as err:
+            load_mesh(tmp_path / name)
+        assert "\n" not in str(err.value)
+    monkeypatch.setattr(meshio, "MAX_MODEL_BYTES", 2**20)
+    with pytest.raises(IsochorError, match=r"zeros.ply: 0.0 GB is more than Isochor reads"):
+        load_mesh(tmp_path / "zeros.ply")
+
+
+def test_a_coordinate_beyond_any_model_is_refused(tmp_path):
+    sphere = icosphere(1)
+    vertices = sphere.vertices.copy()
+    vertices[0, 0] = 1e300
+    write_obj(tmp_path / "huge.obj", TriMesh(vertices, sphere.faces))
+    with pytest.raises(IsochorError, match=r"huge.obj: a vertex coordinate of 1e\+300 is beyond"):
+        load_mesh(tmp_path / "huge.obj")
 
 
 def test_degenerate_and_duplicate_triangles_are_dropped(tmp_path):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import json
 import os
+import re
 import stat
 
 import numpy as np
@@ -135,12 +136,56 @@ def test_the_issue_example_parses():
         ("target_volume_ratio", "1", "target_volume_ratio"),
         ("tolerance.volume", 2, "tolerance"),
         ("tolerance.nodes", None, "tolerance.nodes"),
+        ("tolerance.volume", 1e-300, "tolerance.volume: must be from 1e-12 to 0.5"),
+        ("target_volume_ratio", 2**64, "target_volume_ratio: must be from 1e-06 to 1e+06"),
+        ("target_volume_ratio", 10**400, "target_volume_ratio: must be a finite number"),
+        ("moves.0.by", [1e300, 0, 0], "moves[0].by: must be from -1e+15 to 1e+15"),
+        ("lattice.padding", 2**70, "lattice.padding"),
+        ("model.path", "a\0b.obj", "model.path: not a valid file name"),
     ],
 )
 def test_bad_documents_name_the_field(path, value, field):
     with pytest.raises(IsochorError) as err:
         Scenario.from_dict(changed(path, value))
     assert field in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ('"target_volume_ratio": ' + "9" * 5000, "a number has 5000 digits"),
+        ('"target_volume_ratio": NaN', "NaN is not a JSON number"),
+        ('"target_volume_ratio": Infinity', "Infinity is not a JSON number"),
+        ('"target_volume_ratio": 1e999', "target_volume_ratio: must be a finite number"),
+    ],
+)
+def test_numbers_json_does_not_allow_are_one_line(tmp_path, text, words):
+    path = tmp_path / "s.json"
+    path.write_text('{"model": {"builtin": "sphere"}, ' + text + "}")
+    with pytest.raises(IsochorError, match=words) as err:
+        Scenario.read(path)
+    assert "\n" not in str(err.value) and len(str(err.value)) < 300
+
+
+@pytest.mark.parametrize(
+    ("model", "words"),
+    [
+        ({"builtin": "torus", "n_levels": float("inf")}, "model.n_levels: must be a finite"),
+        ({"builtin": "torus", "n_levels": 2.5}, "model.n_levels: must be a whole number"),
+        ({"builtin": "sphere", "radius": 1e300}, "model.radius: must be from 1e-06 to 1e+06"),
+        ({"builtin": "torus", "minor": 2.0}, "model.minor: must be smaller than model.major"),
+    ],
+)
+def test_builtin_shape_parameters_are_bounded(model, words):
+    with pytest.raises(IsochorError, match=re.escape(words)):
+        build(Scenario.from_dict({"model": model}))
+
+
+def test_a_move_far_beyond_the_lattice_is_refused():
+    doc = {"model": {"builtin": "sphere", "n_levels": 2}}
+    doc["moves"] = [{"node": [0, 0, 0], "by": [1e6, 0, 0]}]
+    with pytest.raises(IsochorError, match=r"moves\[0\]: moves node \[0, 0, 0\] by 1e\+06"):
+        build(Scenario.from_dict(doc))
 
 
 def test_not_an_object():
