@@ -1,4 +1,4 @@
-"""The ``isochor`` command: the editor, a headless solve, the examples, the benchmark.
+"""The ``isochor`` command: the editor, a headless solve, the examples.
 
 ::
 
@@ -9,10 +9,22 @@
     isochor examples                          list the built-in examples
     isochor --version
 
-Exit status: 0 success; 1 a user error (bad file, open mesh, unwritable output: one line
-``isochor: <message>`` on standard error); 2 a usage error; 3 the solve ran but did not
-reach the volume tolerance (the outputs are written, ``converged`` is false in the report);
-130 interrupted (Ctrl-C), with nothing written.
+Exit status:
+
+- 0 success;
+- 1 a user error: a bad or missing file, an open mesh, a number out of range, an output
+  that would replace an input or cannot be written (one line ``isochor: <message>``);
+- 2 a usage error (one line, pointing at ``--help``);
+- 3 the solve ran but did not reach the volume tolerance (the outputs are written,
+  ``converged`` is false in the report);
+- 70 an internal error: a bug (one line ``isochor: internal error: ...``; the traceback
+  only when ``ISOCHOR_DEBUG`` is set);
+- 128 + the signal when interrupted: 130 Ctrl-C, 143 SIGTERM, 129 SIGHUP (one line).
+
+The outputs of ``solve`` are a set (:mod:`isochor.core.atomic`): checked before the solve,
+then written all or none; a failure or an interrupt leaves no new file, no temporary
+file, and every existing file as it was. Python's warnings never reach standard error
+(set ``ISOCHOR_DEBUG`` to see them); the program's own are ``isochor: warning: ...`` lines.
 
 Only ``edit`` (and no command) imports the GUI; everything else runs without Qt.
 """
@@ -168,6 +180,7 @@ def _parser() -> argparse.ArgumentParser:
 
 # -- edit ---------------------------------------------------------------------------------
 def _edit(args: argparse.Namespace) -> int:
+    interrupts.release()  # the editor keeps the default handling of signals
     try:
         from .launch import run_editor  # Qt is imported only for the editor
     except ImportError as exc:

@@ -928,6 +928,22 @@ def test_open_a_model_in_a_default_lattice(tmp_path, scale, shape):
     np.testing.assert_allclose(d.deformed_mesh().vertices, d.surface.full.vertices, atol=1e-9)
 
 
+def test_export_never_replaces_the_model_it_was_made_from(tmp_path):
+    path = tmp_path / "model.obj"
+    save_mesh(path, sphere_mesh((2.0, 1.0, 1.0)))
+    before = path.read_bytes()
+    os.symlink(path, tmp_path / "link.obj")
+    d = Document.open(path)
+    d.select([0])
+    commit(d, d.edit_position(0, -3.0))
+    for target in (path, tmp_path / "link.obj", tmp_path / "." / "model.obj"):
+        with pytest.raises(IsochorError, match="would overwrite the model"):
+            d.export(target)
+    assert path.read_bytes() == before
+    d.export(tmp_path / "deformed.obj")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["deformed.obj", "link.obj", "model.obj"]
+
+
 def test_model_paths_keep_symbolic_links(tmp_path):
     real = tmp_path / "real_folder"
     real.mkdir()
