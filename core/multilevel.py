@@ -180,6 +180,12 @@ def solve(
         v_final = full.volume(x)
         target = target_ratio * full.rest_volume
         energy = surface.springs.energy(x) / size**2
+        if not (np.all(np.isfinite(x)) and np.isfinite(v_final) and np.isfinite(energy)):
+            # never a result made of overflowed numbers, whatever the caller does with it
+            raise IsochorError(
+                "The solve broke down: its numbers overflowed. The moves or the target "
+                "volume are too extreme for this lattice."
+            )
         err = (v_final - target) / v_ref
         ok = converged and abs(err) <= opts.tol_volume
         if converged and not ok:
