@@ -71,7 +71,7 @@ DEBUG_VARIABLE = "ISOCHOR_DEBUG"
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (the console script exits with it).
 
-    Whatever happens, standard error gets at most one line per problem, each starting
+    Whatever happens, standard error gets one line per problem, each starting
     ``isochor:``, and no temporary file is left behind.
     """
     from ..core.atomic import discard_pending
@@ -84,40 +84,40 @@ def main(argv: Sequence[str] | None = None) -> int:
                 warnings.simplefilter("ignore")
             args = _parser().parse_args(list(sys.argv[1:] if argv is None else argv))
             return args.run(args)
-    except IsochorError as exc:
+    except BaseException as exc:
+        # a plain store first (no call, so no signal handler can run before it): from here
+        # on a signal is only noted, and the way out says one thing
+        interrupts.state.armed = False
+        return _status(exc, debug)
+    finally:
+        interrupts.state.armed = False
+        discard_pending()
+
+
+def _status(exc: BaseException, debug: bool) -> int:
+    """The one line and the exit status for what ended the run."""
+    if isinstance(exc, IsochorError):
         return _fail(exc)
-    except interrupts.Interrupted as exc:
-        return _interrupted(exc.status, exc.name, getattr(exc, "written", ()))
-    except KeyboardInterrupt:
-        return _interrupted(128 + 2, "SIGINT", ())
-    except MemoryError:
+    if isinstance(exc, interrupts.Interrupted):
+        return _fail(f"interrupted ({exc.name}); nothing was written", exc.status)
+    if isinstance(exc, KeyboardInterrupt):
+        return _fail("interrupted (SIGINT); nothing was written", 128 + 2)
+    if isinstance(exc, SystemExit):  # --help, --version, a usage error: argparse has spoken
+        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    if isinstance(exc, MemoryError):
         return _fail("out of memory: the model is too large for this computer")
-    except OSError as exc:  # output files: a missing folder, no permission, a full disk
+    if isinstance(exc, OSError):  # a file that vanished or failed while being read
         where = f"{exc.filename}: " if exc.filename else ""
         return _fail(f"{where}{exc.strerror or exc}")
-    except SystemExit as exc:  # --help, --version, a usage error: argparse has spoken
-        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
-    except Exception as exc:
-        if debug:
-            traceback.print_exc()
-        hint = "" if debug else f" (set {DEBUG_VARIABLE}=1 for the details)"
-        return _fail(f"internal error: {type(exc).__name__}: {exc}{hint}", EXIT_INTERNAL)
-    finally:
-        discard_pending()
+    if debug:
+        traceback.print_exception(exc)
+    hint = "" if debug else f" (set {DEBUG_VARIABLE}=1 for the details)"
+    return _fail(f"internal error: {type(exc).__name__}: {exc}{hint}", EXIT_INTERNAL)
 
 
 def _fail(message: Any, status: int = EXIT_ERROR) -> int:
     text = " ".join(str(message).replace("\0", " ").split())  # always one line
     print(f"isochor: {text}", file=sys.stderr)
-    return status
-
-
-def _interrupted(status: int, name: str, written: Sequence[Path]) -> int:
-    if written:
-        done = ", ".join(str(p) for p in written)
-        print(f"isochor: interrupted ({name}) after writing {done}", file=sys.stderr)
-    else:
-        print(f"isochor: interrupted ({name}); nothing was written", file=sys.stderr)
     return status
 
 
@@ -243,12 +243,9 @@ def _solve(args: argparse.Namespace) -> int:
             files.append((o, mesh_bytes(deformed, o.path.suffix.lower())))
         else:
             files.append((o, (json.dumps(report, indent=2, allow_nan=False) + "\n").encode()))
-    try:
-        with interrupts.deferred():
-            write_outputs(files)
-    except interrupts.Interrupted as exc:
-        exc.written = [o.path for o in outputs]
-        raise
+    # a signal stops the run until the first output is renamed into place; from then on
+    # the run completes (the files are in place, so exit 0 or 3 is the truth)
+    write_outputs(files, on_commit=interrupts.hold)
     _summary(result, args)
     if not result.converged:
         print(f"isochor: the solve did not converge: {result.message}", file=sys.stderr)

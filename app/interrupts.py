@@ -3,11 +3,12 @@ stop a run the same way, with one line, exit status 128 + the signal, and nothin
 
 :func:`install` runs at the very top of :mod:`isochor.app.cli`, before its other imports.
 Until :func:`arm` is called (the first thing ``main`` does inside its error handling) a
-signal is only remembered; ``arm`` then raises it where it is caught. After that a signal
-raises :class:`Interrupted` (a ``KeyboardInterrupt``, so everything that stops a solve on
-Ctrl-C stops it on SIGTERM too), except inside :func:`deferred`, the few milliseconds in
-which the outputs are renamed into place: a signal there is raised when the renames are
-done, so the set of outputs is never left half replaced.
+signal is only remembered; ``arm`` then raises it where it is caught. After that the first
+signal raises :class:`Interrupted` (a ``KeyboardInterrupt``, so everything that stops a
+solve on Ctrl-C stops it on SIGTERM too); later ones are only noted, so the way out is
+never interrupted. :func:`hold` ends the raising for good when the outputs start to be
+renamed into place: from then on the run completes, and its exit status tells the truth
+about the files.
 
 A signal the parent process ignores (``nohup``, a background job) stays ignored.
 """
@@ -15,8 +16,7 @@ A signal the parent process ignores (``nohup``, a background job) stays ignored.
 from __future__ import annotations
 
 import signal
-from collections.abc import Iterator
-from contextlib import contextmanager, suppress
+from contextlib import suppress
 
 SIGNALS = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
@@ -40,28 +40,33 @@ class Interrupted(KeyboardInterrupt):
         return 128 + self.signum
 
 
-class _State:
+class State:
+    """What the handler does: ``armed``, raise; otherwise only note the signal."""
+
     armed = False
-    deferring = False
     pending: int | None = None
     previous: dict[int, object] = {}
 
 
+state = State()
+
+
 def _handler(signum: int, frame) -> None:
-    if _State.armed and not _State.deferring:
+    if state.armed:
+        state.armed = False  # once: the way out is never interrupted again
         raise Interrupted(signum)
-    if _State.pending is None:
-        _State.pending = signum
+    if state.pending is None:
+        state.pending = signum
 
 
 def install() -> None:
-    """Catch SIGINT, SIGTERM and SIGHUP (only remembered until :func:`arm`)."""
+    """Catch SIGINT, SIGTERM and SIGHUP (only noted until :func:`arm`)."""
     for sig in SIGNALS:
         try:
             current = signal.getsignal(sig)
             if current is signal.SIG_IGN:
                 continue
-            _State.previous.setdefault(sig, current)
+            state.previous.setdefault(sig, current)
             signal.signal(sig, _handler)
         except (ValueError, OSError):  # not the main thread, or no such signal here
             pass
@@ -69,32 +74,24 @@ def install() -> None:
 
 def arm() -> None:
     """From now on a signal raises :class:`Interrupted`; one that came before is raised now."""
-    _State.armed = True
-    _raise_pending()
+    state.armed = True
+    signum, state.pending = state.pending, None
+    if signum is not None:
+        state.armed = False
+        raise Interrupted(signum)
+
+
+def hold() -> None:
+    """From now on signals are only noted: the run goes on to its end."""
+    state.armed = False
 
 
 def release() -> None:
-    """Give the signals back to what they were before :func:`install` (the editor handles
-    its own)."""
-    for sig, previous in _State.previous.items():
+    """Give the signals back to what they were before :func:`install` (the editor keeps
+    Python's default handling)."""
+    for sig, previous in state.previous.items():
         with suppress(ValueError, OSError, TypeError):
             signal.signal(sig, previous)
-    _State.previous.clear()
-    _State.armed = False
-
-
-@contextmanager
-def deferred() -> Iterator[None]:
-    """Hold signals back for the duration of the block, then raise the first one."""
-    _State.deferring = True
-    try:
-        yield
-    finally:
-        _State.deferring = False
-    _raise_pending()
-
-
-def _raise_pending() -> None:
-    signum, _State.pending = _State.pending, None
-    if signum is not None:
-        raise Interrupted(signum)
+    state.previous.clear()
+    state.armed = False
+    state.pending = None

@@ -24,7 +24,7 @@ import os
 import shutil
 import stat
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -158,12 +158,15 @@ def _probe_folder(path: Path, folder: Path) -> None:
 
 
 # -- writing, all or none ------------------------------------------------------------------
-def write_outputs(items: Sequence[tuple[Output, bytes]]) -> None:
+def write_outputs(
+    items: Sequence[tuple[Output, bytes]], on_commit: Callable[[], None] | None = None
+) -> None:
     """Write every output or none of them.
 
-    Each is written to a temporary file beside its target and flushed; then all are
-    renamed into place. On any failure or interrupt the files already renamed are restored
-    (or removed, if they are new) and every temporary file is removed.
+    Each is written to a temporary file beside its target and flushed; then
+    ``on_commit()`` is called (the command line stops answering signals there) and all
+    are renamed into place. On any failure or interrupt the files already renamed are
+    restored (or removed, if they are new) and every temporary file is removed.
 
     Raises
     ------
@@ -178,6 +181,8 @@ def write_outputs(items: Sequence[tuple[Output, bytes]]) -> None:
         for out, data in items:
             current = out
             temps.append(_write_temp(out.target, data))
+        if on_commit is not None:
+            on_commit()
         for (out, _), tmp in zip(items, temps):
             current = out
             backup = _keep_old(out.target)
