@@ -46,7 +46,7 @@ import traceback  # noqa: E402
 import warnings  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
 from pathlib import Path  # noqa: E402
-from typing import TYPE_CHECKING, Any, TextIO  # noqa: E402
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO  # noqa: E402
 
 from .. import __version__  # noqa: E402
 from ..core.errors import IsochorError  # noqa: E402
@@ -92,6 +92,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         interrupts.state.armed = False
         discard_pending()
+
+
+def entry() -> NoReturn:
+    """The ``isochor`` console script and ``python -m isochor``: :func:`main`, then exit
+    deaf to signals. The run is over and its status decided; a signal now must neither
+    change the status nor kill the interpreter while it shuts down (Python gives the
+    signals back to their default, deadly, action then)."""
+    status = main()
+    interrupts.ignore()
+    sys.exit(status)
 
 
 def _status(exc: BaseException, debug: bool) -> int:

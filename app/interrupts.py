@@ -86,6 +86,14 @@ def hold() -> None:
     state.armed = False
 
 
+def ignore() -> None:
+    """Ignore the signals from now on (the program is on its way out)."""
+    state.armed = False
+    for sig in SIGNALS:
+        with suppress(ValueError, OSError):
+            signal.signal(sig, signal.SIG_IGN)
+
+
 def release() -> None:
     """Give the signals back to what they were before :func:`install` (the editor keeps
     Python's default handling)."""

@@ -519,7 +519,7 @@ def test_wheel_ships_one_import_name(tmp_path):
     scripts.optionxform = str  # keep the scripts' names as written
     scripts.read_string(entry_points)
     assert scripts.has_section("console_scripts"), entry_points
-    assert dict(scripts["console_scripts"]).get("isochor") == "isochor.app.cli:main", entry_points
+    assert dict(scripts["console_scripts"]).get("isochor") == "isochor.app.cli:entry", entry_points
     assert scripts.has_section("gui_scripts") and dict(scripts["gui_scripts"]), (
         f"no gui_scripts for the editor in entry_points.txt:\n{entry_points}"
     )
