@@ -12,8 +12,10 @@ vertices, or binary STL (float32 by the format), chosen by extension, written at
 from __future__ import annotations
 
 import io
+import logging
 import warnings
 from collections.abc import Iterable
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -110,7 +112,7 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
     import trimesh  # heavy: imported on the first read
 
     try:
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
+        with warnings.catch_warnings(), np.errstate(all="ignore"), _quiet("trimesh"):
             warnings.simplefilter("ignore")
             loaded = trimesh.load_mesh(io.BytesIO(data), file_type=kind, process=False)
             if isinstance(loaded, trimesh.Scene):
@@ -140,6 +142,20 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
             f"+-{MAX_COORDINATE:g} (a damaged file?)"
         )
     return vertices, faces
+
+
+@contextmanager
+def _quiet(logger: str):
+    """Silence a library's logging for a while: trimesh logs what it tolerates in a damaged
+    file (with a traceback), which is not for the user; what matters reaches them as one
+    :class:`IsochorError` or a warning of the repair."""
+    log = logging.getLogger(logger)  # its modules' loggers inherit the level
+    before = log.level
+    log.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        log.setLevel(before)
 
 
 def _sniff(path: Path, kind: str, head: bytes, size: int) -> None:

@@ -34,13 +34,15 @@ from scipy.sparse.csgraph import connected_components
 from .bodies import arrange, orient
 from .errors import IsochorError
 from .mesh import TriMesh
-from .volume import face_volumes, signed_volume
+from .volume import face_volumes
 
 #: vertices closer than this fraction of the model size are one vertex
 WELD_TOLERANCE = 1e-9
 
 #: a vertex farther than this many typical distances from the model's middle is "far"
 FAR = 1000.0
+#: the volume must be measurable to this relative precision wherever it is measured from
+PRECISION = 1e-9
 
 
 # -- cleaning ---------------------------------------------------------------------------------
@@ -99,15 +101,22 @@ def clean_closed_surface(vertices: np.ndarray, faces: np.ndarray) -> tuple[TriMe
             "each is taken as a separate solid facing outward."
         )
     # flat: the signed volume is lost in the rounding of the triangles' own volumes
-    middle = np.median(vertices, axis=0)
-    scale = np.abs(face_volumes(vertices - middle, faces)).sum()
-    if not signed_volume(vertices, faces) > 1e-9 * scale:
+    about_middle = face_volumes(vertices, faces, origin=np.median(vertices, axis=0))
+    volume = float(about_middle.sum())
+    if not volume > 1e-9 * np.abs(about_middle).sum():
         raise IsochorError("the surface encloses no volume (it is flat)")
     far = far_vertices(vertices)
+    # the lattice measures about the middle of the bounding box: a few far vertices move
+    # it so far from the rest that the volume drowns in rounding there
+    if far and abs(face_volumes(vertices, faces).sum() - volume) > PRECISION * volume:
+        raise IsochorError(
+            f"{far} vertex(es) lie so far from the rest (more than {FAR:g} times the model's "
+            "typical size) that its volume cannot be measured precisely; a damaged file?"
+        )
     if far:
         warns.append(
-            f"{far} vertex(es) lie more than {FAR:g} times the model's typical size away "
-            "from the rest (a damaged file?); the lattice is fitted around them too."
+            f"{far} vertex(es) lie far from the rest, more than {FAR:g} times the model's "
+            "typical size away (a damaged file?); the lattice is fitted around them too."
         )
     return TriMesh(vertices, faces), warns, n_bodies
 

@@ -72,11 +72,14 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     return _triple_product_sum(_coordinate_rows(v, mean), *corners) / 6.0
 
 
-def face_volumes(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(f,) signed volume of the tetrahedron each face spans with the bounding-box centre;
-    their sum is :func:`signed_volume`, their sum over one body is that body's volume."""
+def face_volumes(
+    vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray | None = None
+) -> np.ndarray:
+    """(f,) signed volume of the tetrahedron each face spans with ``origin`` (by default
+    the bounding-box centre); their sum is :func:`signed_volume`, their sum over one body
+    is that body's volume."""
     v = np.asarray(vertices, dtype=np.float64)
-    v = v - (v.min(axis=0) + v.max(axis=0)) / 2
+    v = v - ((v.min(axis=0) + v.max(axis=0)) / 2 if origin is None else origin)
     tri = v[np.asarray(faces)]
     return np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0
 
