@@ -26,11 +26,11 @@ from .errors import IsochorError
 from .formats import READ_FORMATS, WRITE_FORMATS, listing
 from .mesh import TriMesh
 from .repair import clean_closed_surface
-from .validate import MAX_COORDINATE
+from .validate import MAX_COORDINATE, input_file
 from .volume import signed_volume
 
 #: the largest model file read (a safeguard: a huge or sparse file fails at once, with one
-#: line, instead of filling the memory)
+#: line, instead of filling the memory); some 40 million triangles as binary PLY
 MAX_MODEL_BYTES = 2 * 2**30
 #: bytes looked at to tell whether a file can be of its format at all
 SNIFF_BYTES = 64 * 1024
@@ -88,17 +88,7 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
             f"Isochor reads {known}"
         )
     try:
-        if not path.exists():
-            what = "a loop of symbolic links" if path.is_symlink() else "no such file"
-            raise IsochorError(f"{path}: {what}")
-        if not path.is_file():
-            raise IsochorError(f"{path}: not a file")
-        size = path.stat().st_size
-        if size > MAX_MODEL_BYTES:
-            raise IsochorError(
-                f"{path.name}: {size / 2**30:.1f} GB is more than Isochor reads "
-                f"({MAX_MODEL_BYTES / 2**30:.0f} GB, some 40 million triangles)"
-            )
+        size = input_file(path, "model", MAX_MODEL_BYTES)
         with open(path, "rb") as fh:
             _sniff(path, kind, fh.read(SNIFF_BYTES), size)
             fh.seek(0)

@@ -37,7 +37,7 @@ from .defaults import LATTICE_NODES, PADDING, TOL_NODES, TOL_VOLUME
 from .errors import IsochorError
 from .formats import is_model
 from .lattice import MAX_NODES, MIN_NODES
-from .validate import MAX_COORDINATE, number
+from .validate import MAX_COORDINATE, input_file, number
 
 FORMAT = "isochor-scenario"
 VERSION = 1
@@ -203,15 +203,7 @@ class Scenario:
                 "or name it as model.path in a scenario"
             )
         try:
-            if not path.is_file():
-                what = "no such scenario file" if not path.exists() else "not a file"
-                raise IsochorError(f"{path}: {what}")
-            size = path.stat().st_size
-            if size > MAX_SCENARIO_BYTES:
-                raise IsochorError(
-                    f"{path}: {size / 2**20:.0f} MB is too large to be a scenario "
-                    f"(at most {MAX_SCENARIO_BYTES // 2**20} MB)"
-                )
+            input_file(path, "scenario", MAX_SCENARIO_BYTES)
             text = path.read_text(encoding="utf-8")
         except (OSError, ValueError) as exc:  # ValueError: a NUL byte, a bad encoding
             raise IsochorError(f"{path}: cannot read the scenario ({exc})") from None

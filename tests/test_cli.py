@@ -262,21 +262,6 @@ def test_unknown_example(capsys):
     assert "torus-compression" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize(
-    "argv",
-    [
-        ["solve"],
-        ["solve", "a.json", "--example", "club-bend"],
-        ["frobnicate"],
-        ["solve", "--example"],
-    ],
-)
-def test_usage_errors_exit_2_with_one_line(argv, capsys):
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("isochor: ") and err.count("\n") == 1 and "--help" in err
-
-
 def test_outputs_are_checked_before_solving(tmp_path, capsys, monkeypatch):
     def no_solve(*args, **kwargs):
         raise AssertionError("solved anyway")

@@ -505,66 +505,27 @@ def test_dev_null_and_dev_full_are_refused(tmp_path):
 
 
 # == symbolic links as outputs write their targets =========================================
-def test_symlink_output_writes_its_target(tmp_path):
-    (tmp_path / "real.ply").write_bytes(b"old mesh\n")
-    (tmp_path / "real.json").write_bytes(b"{}\n")
-    os.symlink("real.ply", tmp_path / "link.ply")
-    os.symlink("real.json", tmp_path / "link.json")
-    before = snapshot(tmp_path)
-    run = isochor(
-        "solve",
-        "--example",
-        "torus-compression",
-        "--out",
-        "link.ply",
-        "--report",
-        "link.json",
-        cwd=tmp_path,
-    )
-    after = snapshot(tmp_path)
-    check(
-        run,
-        before,
-        after,
-        ["link.ply", "link.json"],
-        changeable=("real.ply", "real.json"),
-        folder=tmp_path,
-    )
-    assert run.returncode == 0, run
-    assert after["link.ply"] == ("symlink", "real.ply"), after
-    assert after["link.json"] == ("symlink", "real.json"), after
-    assert (tmp_path / "real.ply").read_bytes().startswith(b"ply\n")
-    assert json.loads((tmp_path / "real.json").read_text())["converged"] is True
-
-
-def test_dangling_symlink_output_creates_its_target(tmp_path):
+@pytest.mark.parametrize("dangling", [False, True], ids=["existing", "dangling"])
+def test_symlink_output_writes_its_target(tmp_path, dangling):
+    """A symbolic link given as an output writes the file it names and stays a link; a
+    dangling one creates that file (its folder exists)."""
     (tmp_path / "sub").mkdir()
-    os.symlink("sub/new.ply", tmp_path / "link.ply")
-    os.symlink("sub/new.json", tmp_path / "link.json")
+    if not dangling:
+        (tmp_path / "sub" / "real.ply").write_bytes(b"old mesh\n")
+        (tmp_path / "sub" / "real.json").write_bytes(b"{}\n")
+    os.symlink("sub/real.ply", tmp_path / "link.ply")
+    os.symlink("sub/real.json", tmp_path / "link.json")
     before = snapshot(tmp_path)
-    run = isochor(
-        "solve",
-        "--example",
-        "torus-compression",
-        "--out",
-        "link.ply",
-        "--report",
-        "link.json",
-        cwd=tmp_path,
-    )
+    args = ("--out", "link.ply", "--report", "link.json")
+    run = isochor("solve", "--example", "torus-compression", *args, cwd=tmp_path)
     after = snapshot(tmp_path)
-    check(
-        run,
-        before,
-        after,
-        ["link.ply", "link.json"],
-        changeable=("sub/new.ply", "sub/new.json"),
-        folder=tmp_path,
-    )
+    targets = ("sub/real.ply", "sub/real.json")
+    check(run, before, after, ["link.ply", "link.json"], changeable=targets, folder=tmp_path)
     assert run.returncode == 0, run
-    assert after["link.ply"] == ("symlink", "sub/new.ply"), after
-    assert (tmp_path / "sub" / "new.ply").read_bytes().startswith(b"ply\n")
-    assert json.loads((tmp_path / "sub" / "new.json").read_text())["converged"] is True
+    assert after["link.ply"] == ("symlink", "sub/real.ply"), after
+    assert after["link.json"] == ("symlink", "sub/real.json"), after
+    assert (tmp_path / "sub" / "real.ply").read_bytes().startswith(b"ply\n")
+    assert json.loads((tmp_path / "sub" / "real.json").read_text())["converged"] is True
 
 
 # == a write that fails half-way ===========================================================
