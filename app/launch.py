@@ -98,6 +98,7 @@ def run_editor(
         )
         return FAILED
 
+    from ..core.atomic import check_outputs
     from ..core.errors import IsochorError
     from . import style
     from .document import Document
@@ -121,6 +122,12 @@ def run_editor(
                 return FAILED
             opening_error = str(exc)  # open the window anyway, on the example, and say why
             doc = Document.example()
+    if screenshot:  # never over the file opened or its model (checked before any work)
+        try:
+            check_outputs([(screenshot, "--screenshot")], _inputs(path, doc))
+        except IsochorError as exc:
+            print(f"isochor: {exc}", file=sys.stderr)
+            return FAILED
     window = MainWindow(doc)
     if screenshot:
         limit = SCREENSHOT_TIMEOUT if timeout is None else timeout
@@ -133,6 +140,14 @@ def run_editor(
     return int(code)
 
 
+def _inputs(path: str | None, doc) -> list[tuple[str, str]]:
+    inputs = [(path, "the file it shows")] if path else []
+    model = doc.state.problem.scenario.model
+    if "path" in model:
+        inputs.append((str(doc.state.problem.scenario.model_path()), "the model"))
+    return inputs
+
+
 def take_screenshot(app, window, out: str | Path, timeout: float = SCREENSHOT_TIMEOUT) -> int:
     """Show ``window``, let its solve run to the end, save a PNG of it; the exit code.
 
@@ -141,6 +156,8 @@ def take_screenshot(app, window, out: str | Path, timeout: float = SCREENSHOT_TI
     A solve that failed or did not end in time exits 1 (the picture is still written).
     """
     from PySide6.QtCore import QEventLoop, QTimer
+
+    from ..core.errors import IsochorError
 
     window.headless_errors = True
     # A local loop, not app.exec()/app.quit(): quitting the application would make every
@@ -158,8 +175,8 @@ def take_screenshot(app, window, out: str | Path, timeout: float = SCREENSHOT_TI
             window.session.flush()  # draw the final nodes now
             app.processEvents()
             save_window_png(window, out)
-        except OSError as exc:
-            print(f"isochor: cannot write {out}: {exc}", file=sys.stderr)
+        except IsochorError as exc:
+            print(f"isochor: {exc}", file=sys.stderr)
             outcome["code"] = FAILED
         window.undo_stack.setClean()
         window.close()
@@ -187,12 +204,18 @@ def take_screenshot(app, window, out: str | Path, timeout: float = SCREENSHOT_TI
 
 
 def save_window_png(window, out: str | Path) -> None:
-    """Grab the whole window and write it as PNG through a temporary file and a rename."""
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    image = window.grab().toImage()
-    tmp = out.with_name(f".{out.name}.tmp.png")
-    if not image.save(str(tmp), "PNG"):
-        tmp.unlink(missing_ok=True)
-        raise OSError("the image could not be encoded")
-    os.replace(tmp, out)
+    """Grab the whole window and write it as PNG, atomically (:mod:`isochor.core.atomic`).
+
+    Raises :class:`IsochorError` naming ``out`` when it cannot be written."""
+    from PySide6.QtCore import QBuffer, QByteArray, QIODevice
+
+    from ..core.atomic import atomic_write_bytes
+    from ..core.errors import IsochorError
+
+    data = QByteArray()
+    buffer = QBuffer(data)
+    buffer.open(QIODevice.OpenModeFlag.WriteOnly)
+    if not window.grab().toImage().save(buffer, "PNG"):
+        raise IsochorError(f"{out}: the picture could not be encoded as PNG")
+    buffer.close()
+    atomic_write_bytes(out, bytes(data))

@@ -52,6 +52,34 @@ def test_screenshot_timeout_takes_the_picture_and_says_so(tmp_path):
     assert proc.stderr.count("\n") <= 1 and "Traceback" not in proc.stderr
 
 
+def test_a_screenshot_never_replaces_what_it_shows(tmp_path):
+    """``--screenshot`` is an output like ``solve --out``: refused, before the window
+    opens, when it names the scenario, the model or a folder; a link writes its target."""
+    from isochor.core.scenario import Scenario
+
+    _sphere_obj(tmp_path / "ball.obj")
+    scene = tmp_path / "scene.json"
+    Scenario.from_dict({"model": {"path": "ball.obj"}}, tmp_path).write(scene)
+    before = {p.name: p.read_bytes() for p in (scene, tmp_path / "ball.obj")}
+    for source, out, words in (
+        (scene, scene, "would overwrite the file it shows"),
+        (scene, tmp_path / "ball.obj", "would overwrite the model"),
+        (tmp_path / "ball.obj", tmp_path / "ball.obj", "would overwrite the file it shows"),
+        (scene, tmp_path, "is a folder"),
+    ):
+        proc, _ = run_cli(["edit", str(source), "--screenshot", str(out)])
+        assert proc.returncode == 1 and proc.stderr.count("\n") == 1, proc.stderr
+        assert words in proc.stderr
+    assert {p.name: p.read_bytes() for p in (scene, tmp_path / "ball.obj")} == before
+    os.symlink("shots/real.png", tmp_path / "link.png")
+    (tmp_path / "shots").mkdir()
+    proc, _ = run_cli(["edit", str(scene), "--screenshot", str(tmp_path / "link.png")])
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "link.png").is_symlink()
+    assert (tmp_path / "shots" / "real.png").read_bytes().startswith(b"\x89PNG")
+    assert sorted(p.name for p in (tmp_path / "shots").iterdir()) == ["real.png"]
+
+
 def _labels(win):
     return win.st_level.text(), win.st_solver.text(), win.panel.solve_state.text()
 
