@@ -38,6 +38,7 @@ from . import interrupts
 interrupts.install()
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import json  # noqa: E402
 import os  # noqa: E402
 import sys  # noqa: E402
@@ -239,7 +240,8 @@ def _solve(args: argparse.Namespace) -> int:
     problem = build(scenario)
     for w in problem.warnings:
         print(f"isochor: warning: {w}", file=sys.stderr)
-    out = None if args.quiet else sys.stdout
+    console = _PipeSafe(sys.stdout)
+    out = None if args.quiet else console
     result = run_solve(problem, out)
     total = time.perf_counter() - t0
     surface = problem.surface
@@ -256,7 +258,7 @@ def _solve(args: argparse.Namespace) -> int:
     # a signal stops the run until the first output is renamed into place; from then on
     # the run completes (the files are in place, so exit 0 or 3 is the truth)
     write_outputs(files, on_commit=interrupts.hold)
-    _summary(result, args)
+    _summary(result, args, console)
     if not result.converged:
         print(f"isochor: the solve did not converge: {result.message}", file=sys.stderr)
         return EXIT_NOT_CONVERGED
@@ -347,17 +349,44 @@ def make_report(
     }
 
 
-def _summary(result: SolveResult, args: argparse.Namespace) -> None:
+class _PipeSafe:
+    """Standard output that a reader gone away (``isochor solve ... | head -1``) silences
+    instead of stopping the solve: the table is for reading, the files are the work."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream: TextIO | None = stream
+
+    def write(self, text: str) -> None:
+        self._do(lambda s: s.write(text))
+
+    def flush(self) -> None:
+        self._do(lambda s: s.flush())
+
+    def _do(self, action) -> None:
+        if self.stream is None:
+            return
+        try:
+            action(self.stream)
+        except BrokenPipeError:
+            # what is still buffered goes nowhere, and the exit does not complain either
+            with contextlib.suppress(OSError, ValueError):
+                os.dup2(os.open(os.devnull, os.O_WRONLY), self.stream.fileno())
+            self.stream = None
+
+
+def _summary(result: SolveResult, args: argparse.Namespace, out: _PipeSafe) -> None:
     if args.quiet:
         return
     print(
         f"volume {result.volume_original:.6g} -> {result.volume_final:.6g} "
         f"(target {result.volume_target:.6g}, error {result.rel_volume_error:+.2e}); "
-        f"{result.free_nodes} free nodes; {result.elapsed:.2f} s"
+        f"{result.free_nodes} free nodes; {result.elapsed:.2f} s",
+        file=out,
     )
     for path in (args.out, args.report):
         if path is not None:
-            print(f"wrote {path}")
+            print(f"wrote {path}", file=out)
+    out.flush()
 
 
 if __name__ == "__main__":

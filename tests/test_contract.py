@@ -256,6 +256,17 @@ def test_success_exit_0_writes_both_outputs(tmp_path):
     assert json.loads((tmp_path / "r.json").read_text())["converged"] is True
 
 
+def test_a_reader_gone_away_does_not_stop_the_solve(tmp_path):
+    """``isochor solve ... | head -1``: standard output closes under the table; the solve
+    goes on, both files are written, exit 0, nothing on standard error."""
+    args = ["solve", "--example", "torus-compression", "--out", "o.ply", "--report", "r.json"]
+    proc = _spawn(args, tmp_path)
+    proc.stdout.close()  # the reader is gone before the first row
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0 and err == b"", (proc.returncode, err)
+    assert sorted(snapshot(tmp_path)) == ["o.ply", "r.json"]
+
+
 def test_scenario_file_solves_exit_0(tmp_path):
     model_folder(tmp_path)
     run = solve_in(tmp_path, "scene.json")
