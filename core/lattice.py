@@ -54,6 +54,18 @@ def bernstein(degree: int, t: np.ndarray) -> np.ndarray:
     return coef * t**i * (1.0 - t) ** (degree - i)
 
 
+def bernstein_derivative(degree: int, t: np.ndarray) -> np.ndarray:
+    """d/dt of :func:`bernstein`: ``degree * (B_{i-1}^{degree-1} - B_i^{degree-1})``,
+    shape (p, degree + 1)."""
+    t = np.asarray(t, dtype=np.float64)
+    out = np.zeros((len(t), degree + 1))
+    if degree > 0:
+        low = bernstein(degree - 1, t)
+        out[:, 1:] += low
+        out[:, :-1] -= low
+    return degree * out
+
+
 class PointBasis:
     """The FFD basis of a fixed point set: maps node positions to point positions.
 
@@ -246,3 +258,24 @@ class Lattice:
     def deform(self, points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """(p, 3) points mapped by the FFD with node positions ``nodes`` (nodes, 3)."""
         return self.basis(points).apply(np.asarray(nodes, dtype=np.float64))
+
+    def jacobian(self, points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+        """(p, 3, 3) derivative of the FFD at world points: ``J[p, a, b] = dX_a / dx_b``.
+
+        It transforms tangents (``J t``) and, as its inverse transpose, normals; its
+        determinant is the local change of volume (negative where the map folds space)."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        l, m, n = self.shape
+        grid = np.asarray(nodes, dtype=np.float64).reshape(l, m, n, 3)
+        to_world = np.linalg.inv(self.axes).T  # d(u, v, w) / dx, transposed
+        out = np.empty((len(points), 3, 3))
+        for s in range(0, len(points), BASIS_BLOCK):
+            uvw = self.to_parameters(points[s : s + BASIS_BLOCK])
+            b = [bernstein(d - 1, uvw[:, c]) for c, d in enumerate(self.shape)]
+            db = [bernstein_derivative(d - 1, uvw[:, c]) for c, d in enumerate(self.shape)]
+            columns = [
+                np.einsum("pi,pj,pk,ijka->pa", *(db[c] if c == e else b[c] for c in range(3)), grid)
+                for e in range(3)
+            ]
+            out[s : s + BASIS_BLOCK] = np.stack(columns, axis=2) @ to_world
+        return out

@@ -82,3 +82,29 @@ def test_bad_lattices_are_refused_with_a_message():
         Lattice((3, 3, 3), (0, 0, 0), [[1, 0, 0], [0, 1, 0], [1, 1, 0]])
     with pytest.raises(IsochorError, match="no extent"):
         Lattice.around(np.ones((4, 3)))
+
+
+@pytest.mark.parametrize("shape", [(2, 2, 2), (4, 3, 3), (6, 2, 5)])
+def test_jacobian_matches_central_differences_in_a_skewed_frame(shape, monkeypatch):
+    monkeypatch.setattr(lat_mod, "BASIS_BLOCK", 16)  # several blocks
+    rng = np.random.default_rng(3)
+    lat = Lattice(shape, [0.1, -0.2, 0.3], [[2, 0.1, 0], [0.2, 1.5, 0], [0, 0.3, 1.2]])
+    nodes = lat.rest_nodes + 0.2 * rng.standard_normal((lat.n_nodes, 3))
+    points = lat.origin + rng.uniform(-0.1, 1.1, (50, 3)) @ lat.axes  # inside and out
+    h = 1e-6
+    numeric = np.stack(
+        [
+            (lat.deform(points + h * e, nodes) - lat.deform(points - h * e, nodes)) / (2 * h)
+            for e in np.eye(3)
+        ],
+        axis=2,
+    )
+    np.testing.assert_allclose(lat.jacobian(points, nodes), numeric, atol=1e-8)
+    # at rest the map is the identity; an affine node map has its matrix as Jacobian
+    np.testing.assert_allclose(
+        lat.jacobian(points, lat.rest_nodes), np.tile(np.eye(3), (50, 1, 1)), atol=1e-12
+    )
+    a = np.array([[1.2, 0.3, 0.0], [-0.1, 0.9, 0.2], [0.0, 0.4, 1.1]])
+    np.testing.assert_allclose(
+        lat.jacobian(points, lat.rest_nodes @ a.T), np.tile(a, (50, 1, 1)), atol=1e-12
+    )
