@@ -29,7 +29,7 @@ from ..core.formats import READ_FORMATS, SCENARIO_SUFFIXES, is_model, is_scenari
 from ..core.lattice import MAX_NODES, MIN_NODES
 from ..core.mesh import TriMesh
 from ..core.meshio import save_mesh
-from ..core.problem import Problem, build, model_levels
+from ..core.problem import Problem, build, scenario_model
 from ..core.scenario import Move, Scenario
 from .state import DocState, SolveSummary, StateCell, describe_status, initial_state, plural
 
@@ -160,9 +160,9 @@ class Document:
         if not path.is_file():
             raise IsochorError(f"{path}: no such file")
         scenario = Scenario.from_dict({"model": {"path": os.path.abspath(path)}})
-        levels, warnings = model_levels(scenario)
-        scenario = scenario.with_(lattice_nodes=default_lattice_shape(levels[-1]))
-        return cls(build(scenario, levels=levels, warnings=warnings), title=path.name)
+        model = scenario_model(scenario)
+        scenario = scenario.with_(lattice_nodes=default_lattice_shape(model.levels[-1]))
+        return cls(build(scenario, model=model), title=path.name)
 
     # -- events ----------------------------------------------------------------------------
     def subscribe(self, listener: Listener) -> None:
@@ -321,7 +321,7 @@ class Document:
         scenario = old.scenario.with_(lattice_nodes=shape, moves=(), pins=())
         problem = self._problems.get(_key_of(scenario))
         if problem is None:
-            problem = build(scenario, levels=list(old.surface.levels), warnings=old.warnings)
+            problem = build(scenario, model=old.model)
             self._problems[_key(problem)] = problem
         ratio = self.state.target_ratio
         n = problem.surface.lattice.n_nodes

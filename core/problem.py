@@ -9,7 +9,7 @@ brings the document, the model files (:mod:`isochor.core.meshio`), the level pyr
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +25,39 @@ from .shapes import builtin_levels
 from .solver import SolverOptions
 
 
+@dataclass(frozen=True)
+class SourceFile:
+    """The model file a problem was loaded from, as it was then: the export rewrites this
+    very file (:mod:`isochor.core.export`), so it must not have changed since."""
+
+    path: Path
+    size: int
+    mtime_ns: int
+
+    @classmethod
+    def of(cls, path: str | Path) -> SourceFile:
+        info = Path(path).stat()
+        return cls(Path(path), info.st_size, info.st_mtime_ns)
+
+    def unchanged(self) -> bool:
+        try:
+            info = self.path.stat()
+        except OSError:
+            return False
+        return (info.st_size, info.st_mtime_ns) == (self.size, self.mtime_ns)
+
+
+@dataclass(frozen=True)
+class Model:
+    """A model made ready to embed: its level pyramid (coarse to fine, the last is the
+    full mesh), what loading it said, and the file it came from (None for a built-in
+    shape or a mesh given in memory)."""
+
+    levels: tuple[TriMesh, ...]
+    warnings: tuple[str, ...] = ()
+    source: SourceFile | None = None
+
+
 @dataclass
 class Problem:
     """A scenario made ready to solve: the embedded surface, start nodes and pins."""
@@ -33,22 +66,36 @@ class Problem:
     surface: EmbeddedSurface
     nodes: np.ndarray  #: (n, 3) start positions: rest lattice with the moves applied
     fixed: np.ndarray  #: (n,) bool: moved or pinned
-    warnings: list[str] = field(default_factory=list)
+    model: Model
+    #: what the lattice's fit says (the part of the model outside an explicit frame)
+    coverage: str | None = None
+
+    @property
+    def warnings(self) -> list[str]:
+        """Everything the user should know: the model's load warnings and the coverage."""
+        return [*self.model.warnings, *([self.coverage] if self.coverage else [])]
 
     @property
     def options(self) -> SolverOptions:
         return SolverOptions(tol_volume=self.scenario.tol_volume, tol_nodes=self.scenario.tol_nodes)
 
 
-#: ``path -> (levels coarse to fine, warnings)``: how a model file becomes a pyramid.
-LevelLoader = Callable[[Path], tuple[list[TriMesh], list[str]]]
+#: ``path -> Model``: how a model file becomes a pyramid.
+ModelLoader = Callable[[Path], Model]
+
+
+def load_model(path: str | Path) -> Model:
+    """The level pyramid of a model file, the warnings of loading it and its fingerprint:
+    the default :data:`ModelLoader`."""
+    source = SourceFile.of(path)
+    loaded = load_mesh(path)
+    return Model(tuple(build_pyramid(loaded.mesh)), tuple(loaded.warnings), source)
 
 
 def load_levels(path: str | Path) -> tuple[list[TriMesh], list[str]]:
-    """The level pyramid of a model file (coarse to fine, the last is the full mesh) and
-    the warnings of loading it: the default :data:`LevelLoader`."""
-    loaded = load_mesh(path)
-    return build_pyramid(loaded.mesh), list(loaded.warnings)
+    """The level pyramid of a model file and the warnings of loading it."""
+    model = load_model(path)
+    return list(model.levels), list(model.warnings)
 
 
 #: a move may take a node at most this many lattice sizes away (a bigger one is a mistake
@@ -56,11 +103,11 @@ def load_levels(path: str | Path) -> tuple[list[TriMesh], list[str]]:
 MAX_MOVE = 1000.0
 
 
-def model_levels(scenario: Scenario, loader: LevelLoader | None = None):
-    """The level pyramid and load warnings of the scenario's model."""
+def scenario_model(scenario: Scenario, loader: ModelLoader | None = None) -> Model:
+    """The scenario's model: a built-in shape's levels, or its file loaded."""
     if "builtin" in scenario.model:
         params = {k: v for k, v in scenario.model.items() if k != "builtin"}
-        return builtin_levels(scenario.model["builtin"], **params), []
+        return Model(tuple(builtin_levels(scenario.model["builtin"], **params)))
     path = scenario.model_path()
     if not path.exists():
         what = "a loop of symbolic links" if path.is_symlink() else "no such file"
@@ -68,18 +115,32 @@ def model_levels(scenario: Scenario, loader: LevelLoader | None = None):
         raise IsochorError(
             f"{where}model.path {scenario.model['path']!r}: {what} (looked for {path})"
         )
-    return (loader or load_levels)(path)
+    return (loader or load_model)(path)
+
+
+def coverage(lattice: Lattice, points: np.ndarray) -> str | None:
+    """A sentence when part of the model lies outside the lattice box, where the FFD is a
+    polynomial extrapolation rather than the lattice's own deformation; None when all of
+    it is inside."""
+    uvw = lattice.to_parameters(points)
+    beyond = np.maximum(-uvw, uvw - 1).max(axis=1)  # > 0 outside, in box sizes
+    outside = int(np.sum(beyond > 1e-9))
+    if not outside:
+        return None
+    return (
+        f"{100 * outside / len(points):.3g}% of the model's vertices ({outside} of "
+        f"{len(points)}) lie outside the lattice frame, up to {beyond.max():.3g} of its "
+        "size: the deformation there is extrapolated, not controlled by the lattice."
+    )
 
 
 def build(
-    scenario: Scenario,
-    loader: LevelLoader | None = None,
-    levels: list[TriMesh] | None = None,
-    warnings: list[str] | None = None,
+    scenario: Scenario, loader: ModelLoader | None = None, model: Model | None = None
 ) -> Problem:
-    """Load the model (unless ``levels`` are given), fit the lattice, apply moves and pins."""
-    if levels is None:
-        levels, warnings = model_levels(scenario, loader)
+    """Load the model (unless given), fit the lattice, apply moves and pins."""
+    if model is None:
+        model = scenario_model(scenario, loader)
+    levels = model.levels
     if scenario.frame is None:
         lattice = Lattice.around(levels[-1].vertices, scenario.lattice_nodes, scenario.padding)
     else:
@@ -98,4 +159,6 @@ def build(
             )
     for p in scenario.pins:
         fixed[lattice.index(*p)] = True
-    return Problem(scenario, EmbeddedSurface(lattice, levels), nodes, fixed, list(warnings or []))
+    surface = EmbeddedSurface(lattice, levels)
+    fit = coverage(lattice, surface.full.vertices)
+    return Problem(scenario, surface, nodes, fixed, model, fit)

@@ -322,3 +322,18 @@ def test_a_model_given_as_a_scenario_says_what_to_do(tmp_path):
     model.write_text("v 0 0 0\n")
     with pytest.raises(IsochorError, match="this is a model, not a scenario file"):
         Scenario.read(model)
+
+
+def test_a_model_sticking_out_of_its_frame_is_said_with_how_much():
+    doc = {"model": {"builtin": "sphere", "n_levels": 2}}  # the unit sphere
+    inside = build(Scenario.from_dict(doc))
+    assert inside.coverage is None and inside.warnings == []
+    # a frame covering x from -1 to 0.6 only: the cap beyond x = 0.6 sticks out
+    doc["lattice"] = {"nodes": [3, 3, 3], "frame": {"origin": [-1, -1.1, -1.1],
+                      "axes": [[1.6, 0, 0], [0, 2.2, 0], [0, 0, 2.2]]}}  # fmt: skip
+    problem = build(Scenario.from_dict(doc))
+    points = problem.surface.full.vertices
+    share = np.mean(points[:, 0] > 0.6)
+    assert problem.coverage == problem.warnings[-1]
+    assert problem.coverage.startswith(f"{100 * share:.3g}% of the model's vertices")
+    assert f"up to {(points[:, 0].max() - 0.6) / 1.6:.3g} of its size" in problem.coverage
