@@ -179,7 +179,19 @@ def _parser() -> argparse.ArgumentParser:
     what = solve.add_mutually_exclusive_group(required=True)
     what.add_argument("scenario", nargs="?", type=Path, help="the scenario .json")
     what.add_argument("--example", metavar="NAME", help="a built-in example (isochor examples)")
-    solve.add_argument("--out", type=Path, metavar="MESH", help="deformed mesh: .obj, .ply or .stl")
+    solve.add_argument(
+        "--out",
+        type=Path,
+        metavar="MESH",
+        help="the deformed model: .obj, .ply, .stl, .off, .glb or .gltf; in the model's own "
+        "format it keeps everything but the positions (UVs, polygons, normals transformed)",
+    )
+    solve.add_argument(
+        "--morph-target",
+        action="store_true",
+        help="glTF model to glTF: keep the original mesh and add the deformation as a "
+        "morph target (weight 1)",
+    )
     solve.add_argument("--report", type=Path, metavar="JSON", help="the report (JSON)")
     solve.add_argument("--quiet", "-q", action="store_true", help="no per-level table")
     solve.set_defaults(run=_solve)
@@ -214,11 +226,10 @@ def _examples(args: argparse.Namespace) -> int:
 # -- solve --------------------------------------------------------------------------------
 def _solve(args: argparse.Namespace) -> int:
     from ..core.atomic import check_outputs, write_outputs
+    from ..core.export import export_bytes
     from ..core.formats import WRITE_FORMATS, listing
-    from ..core.mesh import TriMesh
-    from ..core.meshio import mesh_bytes
     from ..core.problem import build
-    from ..core.repair import count_bodies
+    from ..core.report import make_report
     from ..core.scenario import Scenario
 
     if args.example is not None:
@@ -236,6 +247,8 @@ def _solve(args: argparse.Namespace) -> int:
     outputs = check_outputs(wanted, inputs)
     if args.out is not None and args.out.suffix.lower() not in WRITE_FORMATS:
         raise IsochorError(f"{args.out}: --out must end in {listing(WRITE_FORMATS)}")
+    if args.morph_target and (args.out is None or args.out.suffix.lower() not in (".glb", ".gltf")):
+        raise IsochorError("--morph-target needs --out ending in .glb or .gltf")
     t0 = time.perf_counter()
     problem = build(scenario)
     for w in problem.warnings:
@@ -244,15 +257,19 @@ def _solve(args: argparse.Namespace) -> int:
     out = None if args.quiet else console
     result = run_solve(problem, out)
     total = time.perf_counter() - t0
-    surface = problem.surface
-    deformed = TriMesh(surface.deform(result.nodes), surface.full.faces)
-    report = make_report(problem, result, source, total, count_bodies(surface.full))
+    exported = None
+    if args.out is not None:
+        exported = export_bytes(problem, result.nodes, args.out, morph_target=args.morph_target)
+        for note in exported.notes:
+            print(f"isochor: note: {note}", file=sys.stderr)
+    report = make_report(problem, result, source, total)
+    report["export_notes"] = list(exported.notes) if exported is not None else []
     # everything is computed before anything is written: an error or a signal up to here
     # leaves no file; then the outputs are written as a set, all or none
     files = []
     for o in outputs:
         if o.role == "--out":
-            files.append((o, mesh_bytes(deformed, o.path.suffix.lower())))
+            files.append((o, exported.data))
         else:
             files.append((o, (json.dumps(report, indent=2, allow_nan=False) + "\n").encode()))
     # a signal stops the run until the first output is renamed into place; from then on
@@ -306,47 +323,6 @@ def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:
             last[0] = p.elapsed
 
     return run_to_end(run, row)
-
-
-def make_report(
-    problem: Problem, result: SolveResult, source: str, time_s: float, bodies: int
-) -> dict[str, Any]:
-    """The JSON report of a solve (volumes on the full-resolution mesh)."""
-    sc = problem.scenario
-    return {
-        "scenario": source,
-        "model": dict(sc.model),
-        "model_path": str(sc.model_path()) if "path" in sc.model else None,
-        "lattice": list(problem.surface.lattice.shape),
-        "triangles": problem.surface.full.n_faces,
-        "bodies": bodies,
-        "volume_original": result.volume_original,
-        "volume_target": result.volume_target,
-        "volume_final": result.volume_final,
-        "relative_volume_error": result.rel_volume_error,
-        "target_volume_ratio": sc.target_volume_ratio,
-        "converged": bool(result.converged),
-        "message": result.message,
-        "terminal_level": result.terminal_level,
-        "levels": [
-            {
-                "level": s.level,
-                "triangles": s.triangles,
-                "steps": s.steps,
-                "time_s": s.time_s,
-                "max_node_change": s.max_node_change,
-                "relative_volume_error": s.rel_volume_error,
-            }
-            for s in result.levels
-        ],
-        "pyramid": [m.n_faces for m in problem.surface.levels],
-        "nodes": [[float(x) for x in row] for row in result.nodes],
-        "free_nodes": result.free_nodes,
-        "energy": result.energy,
-        "solve_time_s": result.elapsed,
-        "time_s": time_s,
-        "warnings": list(problem.warnings),
-    }
 
 
 class _PipeSafe:

@@ -23,13 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.atomic import check_outputs, write_outputs
 from ..core.errors import IsochorError
 from ..core.examples import example_scenario
+from ..core.export import export_bytes
 from ..core.formats import READ_FORMATS, SCENARIO_SUFFIXES, is_model, is_scenario, listing
 from ..core.lattice import MAX_NODES, MIN_NODES
 from ..core.mesh import TriMesh
-from ..core.meshio import save_mesh
-from ..core.problem import Problem, build, scenario_model
+from ..core.problem import Problem, build, default_lattice_shape, scenario_model
 from ..core.scenario import Move, Scenario
 from .state import DocState, SolveSummary, StateCell, describe_status, initial_state, plural
 
@@ -45,13 +46,6 @@ __all__ = [
     "initial_state",
     "plural",
 ]
-
-
-def default_lattice_shape(mesh: TriMesh) -> tuple[int, int, int]:
-    """4 nodes along the model's longest extent, 3 along the others."""
-    shape = [3, 3, 3]
-    shape[int(np.argmax(mesh.extents))] = 4
-    return tuple(shape)
 
 
 @dataclass(frozen=True)
@@ -381,11 +375,18 @@ class Document:
         nodes = self.base_nodes() if nodes is None else nodes
         return TriMesh(self.surface.deform(nodes), self.surface.full.faces)
 
-    def export(self, path: str | Path, nodes: np.ndarray | None = None) -> None:
-        """Write the deformed mesh; never over the model file it was made from."""
-        sc = self.state.problem.scenario
+    def export(self, path: str | Path, nodes: np.ndarray | None = None) -> list[str]:
+        """Write the deformed model through the one export path (:mod:`isochor.core.export`):
+        in the model's own format it keeps everything but the positions. Never over the
+        model file it was made from. Returns the notes for the user."""
+        problem = self.state.problem
+        sc = problem.scenario
         model = [(sc.model_path(), "the model")] if "path" in sc.model else []
-        save_mesh(path, self.deformed_mesh(nodes), inputs=model)
+        outputs = check_outputs([(path, "the export")], model, probe=False)
+        nodes = self.base_nodes() if nodes is None else nodes
+        exported = export_bytes(problem, nodes, path)
+        write_outputs([(outputs[0], exported.data)])
+        return exported.notes
 
 
 def _key_of(scenario: Scenario) -> tuple:

@@ -30,6 +30,9 @@ EXPORT_FILTERS = {
     "Wavefront OBJ (*.obj)": ".obj",
     "Stanford PLY (*.ply)": ".ply",
     "STL (*.stl)": ".stl",
+    "OFF (*.off)": ".off",
+    "glTF binary (*.glb)": ".glb",
+    "glTF (*.gltf)": ".gltf",
 }
 assert set(EXPORT_FILTERS.values()) == set(WRITE_FORMATS)
 
@@ -141,9 +144,9 @@ class FileCommands:
 
     def export(self, path: str | Path) -> bool:
         try:
-            self.doc.export(path)
+            notes = self.doc.export(path)
         except (IsochorError, OSError, ValueError) as exc:
             self.win.error("Cannot export the mesh", str(exc))
             return False
-        self.win.statusBar().showMessage(f"Exported {path}", 4000)
+        self.win.statusBar().showMessage(" ".join([f"Exported {path}.", *notes]), 8000)
         return True

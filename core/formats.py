@@ -1,7 +1,7 @@
 """The file formats Isochor reads and writes, by file name suffix: their one owner.
 
-Models are read from OBJ, PLY, STL and OFF and written as OBJ, PLY or STL; scenarios are
-JSON. Everything that decides by suffix (the reader, the writer, the command line, the
+Models are read from and written as OBJ, PLY, STL, OFF and glTF (.glb binary, .gltf text);
+scenarios are JSON. Everything that decides by suffix (the reader, the writer, the command line, the
 window's file dialogs, files dropped on the view) asks here.
 """
 
@@ -9,10 +9,19 @@ from __future__ import annotations
 
 from pathlib import Path
 
-#: model suffix -> trimesh file type
-READ_FORMATS: dict[str, str] = {".obj": "obj", ".ply": "ply", ".stl": "stl", ".off": "off"}
+#: model suffix -> file type
+READ_FORMATS: dict[str, str] = {
+    ".obj": "obj",
+    ".ply": "ply",
+    ".stl": "stl",
+    ".off": "off",
+    ".glb": "glb",
+    ".gltf": "gltf",
+}
 #: suffixes of the deformed meshes Isochor writes
-WRITE_FORMATS: tuple[str, ...] = (".obj", ".ply", ".stl")
+WRITE_FORMATS: tuple[str, ...] = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
+#: the glTF containers (one format, binary or text)
+GLTF_FORMATS: tuple[str, ...] = (".glb", ".gltf")
 #: suffixes of scenario documents
 SCENARIO_SUFFIXES: tuple[str, ...] = (".json",)
 

@@ -1,12 +1,16 @@
-"""Model files: read OBJ, PLY, STL and OFF into a clean closed :class:`TriMesh`; write results.
+"""Model files: read OBJ, PLY, STL, OFF and glTF into a clean closed :class:`TriMesh`;
+write meshes.
 
-Reading (:func:`load_mesh`) goes through trimesh (polygons are triangulated by its readers),
-then :func:`isochor.core.repair.clean_closed_surface` welds, checks and orients the surface.
-Any problem a file can have ends in one :class:`IsochorError` that names the file; trimesh's
-own exceptions never reach the user.
+Reading (:func:`load_mesh`) goes through trimesh (polygons are triangulated by its readers;
+glTF through :mod:`isochor.core.gltf`, node transforms applied), then
+:func:`isochor.core.repair.clean_closed_surface` welds, checks and orients the surface.
+Any problem a file can have ends in one :class:`IsochorError` that names the file;
+trimesh's own exceptions and log lines never reach the user.
 
-Writing (:func:`save_mesh`): OBJ (``%.17g``, exact round trip), binary PLY with float64
-vertices, or binary STL (float32 by the format), chosen by extension, written atomically.
+Writing a mesh anew (:func:`save_mesh`, :func:`mesh_bytes`): OBJ (``%.17g``, exact round
+trip), binary PLY with float64 vertices, binary STL (float32 by the format), OFF, or glTF,
+chosen by extension, written atomically. Exporting a deformed *model* keeps its own file's
+contents: :mod:`isochor.core.export`.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import numpy as np
 
 from .atomic import atomic_write_bytes
 from .errors import IsochorError
-from .formats import READ_FORMATS, WRITE_FORMATS, listing
+from .formats import GLTF_FORMATS, READ_FORMATS, WRITE_FORMATS, listing
 from .mesh import TriMesh
 from .repair import clean_closed_surface
 from .validate import MAX_COORDINATE, input_file
@@ -61,7 +65,7 @@ class LoadedMesh:
 
 # -- reading ----------------------------------------------------------------------------------
 def load_mesh(path: str | Path) -> LoadedMesh:
-    """Read a closed triangle surface from an OBJ, PLY, STL or OFF file.
+    """Read a closed triangle surface from an OBJ, PLY, STL, OFF or glTF (.glb, .gltf) file.
 
     Raises
     ------
@@ -99,6 +103,15 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise IsochorError(f"{str(path)!r}: not a valid file name") from None
     if not data or data.isspace():
         raise IsochorError(f"{path.name}: the file is empty")
+    if kind in ("glb", "gltf"):
+        from .gltf import read_gltf
+
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            vertices, faces = read_gltf(
+                data, path.suffix.lower(), name=path.name, base_dir=path.parent
+            )
+        return _checked(path, kind, vertices, faces)
     import trimesh  # heavy: imported on the first read
 
     try:
@@ -114,6 +127,13 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise IsochorError(
             f"{path.name}: not a readable {kind.upper()} file (damaged or truncated?): {detail}"
         ) from None
+    return _checked(path, kind, vertices, faces)
+
+
+def _checked(
+    path: Path, kind: str, vertices: np.ndarray, faces: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The raw arrays, refused when they cannot be a triangle mesh of real numbers."""
     if faces.size == 0:
         raise IsochorError(
             f"{path.name}: no triangles found (not a valid {kind.upper()} file, or an empty mesh)"
@@ -168,6 +188,9 @@ def _sniff(path: Path, kind: str, head: bytes, size: int) -> None:
                     f"{path.name}: not a binary STL file: its header says {count} "
                     f"triangle(s), which need {84 + 50 * count} bytes, and it has {size}"
                 )
+    elif kind == "glb":
+        if not head.startswith(b"glTF"):
+            raise IsochorError(f"{path.name}: not a GLB file (it does not start with 'glTF')")
     elif b"\0" in head:
         raise IsochorError(f"{path.name}: not a {kind.upper()} file (it is not text)")
 
@@ -202,7 +225,8 @@ def save_mesh(
 
 
 def mesh_bytes(mesh: TriMesh, suffix: str) -> bytes:
-    """The file contents of ``mesh`` in the format of ``suffix`` (.obj, .ply or .stl)."""
+    """The file contents of ``mesh`` in the format of ``suffix`` (see
+    :data:`isochor.core.formats.WRITE_FORMATS`)."""
     v, f = mesh.vertices, mesh.faces
     if suffix == ".obj":
         buf = io.BytesIO()
@@ -229,4 +253,18 @@ def mesh_bytes(mesh: TriMesh, suffix: str) -> bytes:
         rows["n"], rows["v"] = normals, tri
         head = b"binary STL written by Isochor".ljust(80, b" ")
         return head + np.uint32(len(f)).tobytes() + rows.tobytes()
+    if suffix == ".off":
+        buf = io.BytesIO()
+        buf.write(f"OFF\n{len(v)} {len(f)} 0\n".encode())
+        np.savetxt(buf, v, fmt="%.17g %.17g %.17g")
+        np.savetxt(buf, f, fmt="3 %d %d %d")
+        return buf.getvalue()
+    if suffix in GLTF_FORMATS:
+        import trimesh
+
+        tm = trimesh.Trimesh(v, f, process=False)
+        if suffix == ".glb":
+            return tm.export(file_type="glb")
+        files = tm.export(file_type="gltf", embed_buffers=True)
+        return next(data for key, data in files.items() if key.endswith(".gltf"))
     raise IsochorError(f"cannot write {suffix!r} files")

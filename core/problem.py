@@ -118,6 +118,13 @@ def scenario_model(scenario: Scenario, loader: ModelLoader | None = None) -> Mod
     return (loader or load_model)(path)
 
 
+def default_lattice_shape(mesh: TriMesh) -> tuple[int, int, int]:
+    """The lattice a model opens in: 4 nodes along its longest extent, 3 along the others."""
+    shape = [3, 3, 3]
+    shape[int(np.argmax(mesh.extents))] = 4
+    return tuple(shape)
+
+
 def coverage(lattice: Lattice, points: np.ndarray) -> str | None:
     """A sentence when part of the model lies outside the lattice box, where the FFD is a
     polynomial extrapolation rather than the lattice's own deformation; None when all of

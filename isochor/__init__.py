@@ -8,11 +8,47 @@ One distribution, one import name. The source folders of the repository install 
   pyvistaqt; imported only when the editor starts)
 - :mod:`isochor.assets` the sample models, example scenarios and the icon the program ships
 
-``import isochor`` is cheap: it imports neither numpy nor Qt.
+``import isochor`` is cheap: it imports neither numpy nor Qt. The Python API
+(:mod:`isochor.core.api`) is loaded on first use::
+
+    import isochor
+    result = isochor.deform(mesh, lattice=(5, 2, 2), moves={(0, 0, 0): (0, 1.5, 0)})
+    result.mesh, result.report
+
+- :func:`deform`: one deformation of a mesh in memory, returned as the same type
+- :class:`Session`: repeated edits of one model (reusing its level pyramid), export, save
+- :func:`load`: a session on a model or scenario file
+- :class:`Scenario`, :class:`Move`: the scenario document; :class:`IsochorError`: what a
+  user's mistake raises, one sentence
 """
 
 from __future__ import annotations
 
 __version__ = "0.2.0"
 
-__all__ = ["__version__"]
+_API = {
+    "deform": "isochor.core.api",
+    "Deformed": "isochor.core.api",
+    "Session": "isochor.core.api",
+    "load": "isochor.core.api",
+    "Scenario": "isochor.core.scenario",
+    "Move": "isochor.core.scenario",
+    "IsochorError": "isochor.core.errors",
+}
+
+__all__ = ["__version__", *_API]
+
+
+def __getattr__(name: str):
+    """The API, imported when first asked for (so ``import isochor`` stays cheap)."""
+    if name in _API:
+        import importlib
+
+        value = getattr(importlib.import_module(_API[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'isochor' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -1,0 +1,387 @@
+"""The Python API: Isochor from a script, on a mesh in memory or a file.
+
+Two entry points, both re-exported by the package (``import isochor``):
+
+- :func:`deform`: one call, one result. It takes ``(vertices, faces)`` arrays, a
+  ``trimesh.Trimesh`` or a ``pyvista.PolyData`` and gives back the same type deformed
+  (every vertex the input had, in its order, its other data kept), in a
+  :class:`Deformed` that also holds the report;
+- :class:`Session`: repeated edits of one model that reuse its level pyramid and caches:
+  move, pin and unpin nodes, solve (to the end or step by step), export, save the
+  scenario. :func:`load` opens a model or scenario file as a session.
+
+The solver works on a welded, checked copy of the surface (:mod:`isochor.core.repair`);
+the FFD, a map of space, then moves the caller's own vertices. No Qt or VTK is imported
+here: a ``pyvista.PolyData`` is handled through its own methods.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator, Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .atomic import atomic_write_bytes
+from .errors import IsochorError
+from .export import export_bytes
+from .formats import WRITE_FORMATS, is_scenario, listing
+from .generators import run_to_end
+from .lattice import Lattice
+from .mesh import TriMesh
+from .meshio import mesh_bytes
+from .multilevel import solve as solve_levels
+from .problem import Model, Problem, build, default_lattice_shape, scenario_model
+from .pyramid import build_pyramid
+from .records import Progress, SolveResult
+from .repair import clean_closed_surface
+from .report import make_report
+from .scenario import Move, Scenario
+
+Node = tuple[int, int, int]
+
+
+@dataclass(frozen=True)
+class Deformed:
+    """What :func:`deform` returns.
+
+    Attributes
+    ----------
+    mesh : the input deformed, of the input's type: a ``(vertices, faces)`` tuple, a
+        ``trimesh.Trimesh`` or a ``pyvista.PolyData`` (a new object; the input is unchanged)
+    report : the solve's report, the same dict ``isochor solve --report`` writes
+    result : the solver's :class:`~isochor.core.records.SolveResult` (final lattice nodes,
+        volumes, levels)
+    """
+
+    mesh: Any
+    report: dict[str, Any]
+    result: SolveResult
+
+    @property
+    def converged(self) -> bool:
+        """True when the volume met its tolerance."""
+        return bool(self.result.converged)
+
+
+class _Mesh:
+    """A caller's mesh: its vertices and triangles for the solver, and how to give back
+    the same type with other vertex positions."""
+
+    def __init__(self, mesh: Any) -> None:
+        self.original = mesh
+        if hasattr(mesh, "vertices") and hasattr(mesh, "faces") and hasattr(mesh, "copy"):
+            self.kind = "trimesh"  # trimesh.Trimesh (and alike): triangles already
+            self.vertices = np.asarray(mesh.vertices, dtype=np.float64)
+            self.faces = np.asarray(mesh.faces, dtype=np.int64)
+        elif hasattr(mesh, "points") and hasattr(mesh, "triangulate"):
+            self.kind = "pyvista"  # pyvista.PolyData: flat [n, i, j, k, ...] cells
+            tri = mesh.triangulate()
+            self.vertices = np.asarray(mesh.points, dtype=np.float64)
+            self.faces = np.asarray(tri.faces, dtype=np.int64).reshape(-1, 4)[:, 1:]
+        elif isinstance(mesh, Sequence) and len(mesh) == 2:
+            self.kind = "arrays"
+            self.vertices = np.asarray(mesh[0], dtype=np.float64)
+            self.faces = np.asarray(mesh[1], dtype=np.int64)
+        else:
+            raise IsochorError(
+                "a mesh is (vertices, faces) arrays, a trimesh.Trimesh or a pyvista.PolyData"
+                f"; got {type(mesh).__name__}"
+            )
+        if self.vertices.ndim != 2 or self.vertices.shape[1] != 3:
+            raise IsochorError(f"the vertices must be an (n, 3) array, got {self.vertices.shape}")
+        if self.faces.ndim != 2 or self.faces.shape[1] != 3 or len(self.faces) == 0:
+            raise IsochorError(f"the faces must be an (f, 3) array, got {self.faces.shape}")
+        if self.faces.min() < 0 or self.faces.max() >= len(self.vertices):
+            raise IsochorError("a face refers to a vertex that does not exist")
+        if not np.all(np.isfinite(self.vertices)):
+            raise IsochorError("a vertex has a coordinate that is not a number")
+
+    def like(self, vertices: np.ndarray) -> Any:
+        """The caller's mesh type, with these vertex positions."""
+        if self.kind == "arrays":
+            return vertices, self.faces.copy()
+        out = self.original.copy()
+        if self.kind == "trimesh":
+            out.vertices = vertices
+        else:
+            out.points = vertices
+        return out
+
+    def file_bytes(self, vertices: np.ndarray, path: Path) -> bytes:
+        """The deformed mesh as the file ``path`` names: a trimesh writes itself (its UVs
+        with it, where the format has room); other meshes as their triangles."""
+        suffix = path.suffix.lower()
+        if suffix not in WRITE_FORMATS:
+            raise IsochorError(f"{path}: the file name must end in {listing(WRITE_FORMATS)}")
+        if self.kind == "trimesh":
+            return _as_bytes(self.like(vertices).export(file_type=suffix[1:]), path.name)
+        return mesh_bytes(TriMesh(vertices, self.faces), suffix)
+
+
+def _as_bytes(data: Any, name: str) -> bytes:
+    if isinstance(data, dict):  # trimesh's .gltf: {file name: bytes}
+        data = next(v for k, v in data.items() if k.endswith(".gltf"))
+    return data if isinstance(data, bytes) else str(data).encode("utf-8")
+
+
+class Session:
+    """Repeated edits of one model, reusing its level pyramid and caches.
+
+    Parameters
+    ----------
+    source : a model or scenario file path, or a mesh in memory (see :func:`deform`)
+    lattice : nodes per axis (2 to 10 each); by default 4 along the longest extent and 3
+        along the others (a scenario file's own lattice when ``source`` is one)
+    padding : the lattice box around the model's bounding box, a fraction of its extent
+    frame : ``(origin, axes)``: an explicit lattice box instead (rows of ``axes`` are its
+        three edge vectors)
+    target : the volume to reach, relative to the model's (1 keeps it)
+
+    Examples
+    --------
+    >>> import isochor, trimesh
+    >>> s = isochor.Session(trimesh.creation.icosphere(), lattice=(3, 3, 3))
+    >>> s.move((2, 1, 1), by=(0.5, 0.0, 0.0))
+    >>> s.pin((0, 1, 1))
+    >>> s.solve().converged
+    True
+    """
+
+    def __init__(
+        self,
+        source: Any,
+        lattice: Sequence[int] | None = None,
+        *,
+        padding: float | None = None,
+        frame: tuple[Sequence[float], Sequence[Sequence[float]]] | None = None,
+        target: float | None = None,
+    ) -> None:
+        self._mesh: _Mesh | None = None
+        if isinstance(source, (str, Path)):
+            scenario, model = _open(Path(source))
+        else:
+            self._mesh = _Mesh(source)
+            clean, warns, _ = clean_closed_surface(self._mesh.vertices, self._mesh.faces)
+            model = Model(tuple(build_pyramid(clean)), tuple(warns))
+            scenario = Scenario({"mesh": "in memory"})
+        changes: dict[str, Any] = {}
+        if lattice is not None:  # another lattice: a scenario's moves and pins name old nodes
+            changes.update(lattice_nodes=tuple(lattice), moves=(), pins=())
+        elif not isinstance(source, (str, Path)) or not is_scenario(Path(source)):
+            changes["lattice_nodes"] = default_lattice_shape(model.levels[-1])
+        if padding is not None:
+            changes["padding"] = padding
+        if frame is not None:
+            changes["frame"] = (list(frame[0]), [list(a) for a in frame[1]])
+        if target is not None:
+            changes["target_volume_ratio"] = target
+        scenario = _checked(scenario, changes)
+        self.problem: Problem = build(scenario, model=model)
+        self.nodes = self.problem.nodes.copy()
+        self.fixed = self.problem.fixed.copy()
+        self.target = float(scenario.target_volume_ratio)
+        self.result: SolveResult | None = None
+
+    # -- the lattice ------------------------------------------------------------------------
+    @property
+    def lattice(self) -> Lattice:
+        """The FFD lattice (its rest nodes are ``lattice.rest_nodes``)."""
+        return self.problem.surface.lattice
+
+    @property
+    def warnings(self) -> list[str]:
+        """What loading the model and fitting the lattice said, one sentence each."""
+        return self.problem.warnings
+
+    def _row(self, node: Node) -> int:
+        try:
+            return self.lattice.index(*(int(a) for a in node))
+        except (IndexError, TypeError, ValueError):
+            l, m, n = self.lattice.shape
+            raise IsochorError(f"node {node!r} is not a node of the {l}x{m}x{n} lattice") from None
+
+    def move(
+        self, node: Node, by: Sequence[float] | None = None, to: Sequence[float] | None = None
+    ) -> None:
+        """Move a node ``by`` an offset from where it is, or ``to`` a position; it stays
+        there (fixed) in the next solves."""
+        if (by is None) == (to is None):
+            raise IsochorError("move: give exactly one of by= or to=")
+        r = self._row(node)
+        new = self.nodes[r] + np.asarray(by, float) if by is not None else np.asarray(to, float)
+        if new.shape != (3,) or not np.all(np.isfinite(new)):
+            raise IsochorError(f"move: node {tuple(node)} needs three finite coordinates")
+        self.nodes[r] = new
+        self.fixed[r] = True
+
+    def pin(self, *nodes: Node) -> None:
+        """Keep these nodes where they are in the next solves."""
+        for node in nodes:
+            self.fixed[self._row(node)] = True
+
+    def unpin(self, *nodes: Node) -> None:
+        """Free these nodes (moved or pinned): the next solve places them."""
+        for node in nodes:
+            self.fixed[self._row(node)] = False
+
+    # -- solving -----------------------------------------------------------------------------
+    def steps(self) -> Generator[Progress, None, SolveResult]:
+        """Solve step by step: yields a :class:`~isochor.core.records.Progress` record per
+        inner step and level, returns the result; the session's nodes become the result's.
+        Closing the generator stops the solve and keeps the nodes as they were."""
+        result = yield from solve_levels(
+            self.problem.surface,
+            self.nodes,
+            self.fixed,
+            target_ratio=self.target,
+            options=self.problem.options,
+        )
+        self.nodes = np.array(result.nodes)
+        self.result = result
+        return result
+
+    def solve(self) -> SolveResult:
+        """Solve to the end from the current nodes; the nodes become the result's."""
+        return run_to_end(self.steps())
+
+    @property
+    def report(self) -> dict[str, Any]:
+        """The last solve's report (the command line's ``--report``)."""
+        if self.result is None:
+            raise IsochorError("nothing solved yet: call solve() first")
+        return make_report(self.problem, self.result, "isochor.Session")
+
+    # -- results -----------------------------------------------------------------------------
+    def deformed_vertices(self) -> np.ndarray:
+        """The model's vertices (the caller's own, for a mesh in memory; the welded ones
+        for a file) moved by the current nodes."""
+        points = (
+            self._mesh.vertices if self._mesh is not None else self.problem.surface.full.vertices
+        )
+        return self.lattice.deform(points, self.nodes)
+
+    @property
+    def mesh(self) -> Any:
+        """The deformed model: the caller's mesh type for a mesh in memory, a
+        :class:`~isochor.core.mesh.TriMesh` for a file."""
+        if self._mesh is not None:
+            return self._mesh.like(self.deformed_vertices())
+        return TriMesh(self.deformed_vertices(), self.problem.surface.full.faces)
+
+    def export(self, path: str | Path, *, morph_target: bool = False) -> list[str]:
+        """Write the deformed model through the one export path (the same as the command
+        line's ``--out`` and the window's Export): in the model file's own format it keeps
+        everything but the positions. Never over the model file. Returns the notes."""
+        if self._mesh is not None:  # the caller's own mesh, written by its own kind
+            data = self._mesh.file_bytes(self.deformed_vertices(), Path(path))
+            atomic_write_bytes(path, data)
+            return []
+        exported = export_bytes(self.problem, self.nodes, path, morph_target=morph_target)
+        model = self.problem.model.source
+        atomic_write_bytes(path, exported.data, [(model.path, "the model")] if model else [])
+        return exported.notes
+
+    def scenario(self) -> Scenario:
+        """The current edit as a scenario: moved nodes as ``to`` moves, pins, the target."""
+        rest = self.lattice.rest_nodes
+        moved = self.fixed & np.any(self.nodes != rest, axis=1)
+        lat = self.lattice
+        moves = tuple(
+            Move(lat.ijk(r), to=tuple(float(x) for x in self.nodes[r]))
+            for r in np.flatnonzero(moved)
+        )
+        pins = tuple(lat.ijk(r) for r in np.flatnonzero(self.fixed & ~moved))
+        return self.problem.scenario.with_(moves=moves, pins=pins, target_volume_ratio=self.target)
+
+    def save(self, path: str | Path) -> None:
+        """Save the current edit as a scenario file (the model must be a file or a
+        built-in shape: a mesh in memory has no name to write)."""
+        if "mesh" in self.problem.scenario.model:
+            raise IsochorError(
+                "a mesh from memory has no file a scenario can name; export it first"
+            )
+        self.scenario().write(path)
+
+
+def _checked(scenario: Scenario, changes: dict[str, Any]) -> Scenario:
+    """``scenario`` with ``changes``, each checked as the scenario file's field would be
+    (the same one-line errors: ``lattice.nodes: each axis needs 2 to 10 nodes``)."""
+    doc = scenario.to_dict()
+    doc["model"] = {"builtin": "sphere"}  # the model is not what is checked here
+    lat = doc["lattice"]
+    if "lattice_nodes" in changes:
+        lat["nodes"] = [
+            int(n) if isinstance(n, np.integer) else n for n in changes["lattice_nodes"]
+        ]
+    if "padding" in changes:
+        lat.pop("frame", None)
+        lat["padding"] = changes["padding"]
+    if "frame" in changes:
+        lat.pop("padding", None)
+        lat["frame"] = {"origin": changes["frame"][0], "axes": changes["frame"][1]}
+    if "target_volume_ratio" in changes:
+        doc["target_volume_ratio"] = changes["target_volume_ratio"]
+    if "moves" in changes:
+        doc["moves"], doc["pins"] = [], []
+    checked = Scenario.from_dict(doc)
+    return replace(
+        checked, model=scenario.model, base_dir=scenario.base_dir, source=scenario.source
+    )
+
+
+def _open(path: Path) -> tuple[Scenario, Model]:
+    if is_scenario(path):
+        scenario = Scenario.read(path)
+        return scenario, scenario_model(scenario)
+    scenario = Scenario.from_dict({"model": {"path": str(path.absolute())}})
+    return scenario, scenario_model(scenario)
+
+
+def load(path: str | Path, **options: Any) -> Session:
+    """A :class:`Session` on a model (OBJ, PLY, STL, OFF, glTF) or a scenario file; the
+    ``options`` are :class:`Session`'s."""
+    return Session(Path(path), **options)
+
+
+def deform(
+    mesh: Any,
+    lattice: Sequence[int] | None = None,
+    *,
+    moves: Mapping[Node, Sequence[float]] | Iterable[Mapping[str, Any]] = (),
+    pins: Iterable[Node] = (),
+    target: float = 1.0,
+    **options: Any,
+) -> Deformed:
+    """Deform a mesh in memory, keeping its volume (or reaching ``target`` times it).
+
+    Parameters
+    ----------
+    mesh : ``(vertices, faces)`` arrays (``(n, 3)`` floats, ``(f, 3)`` ints), a
+        ``trimesh.Trimesh`` or a ``pyvista.PolyData``: a closed surface
+    lattice : nodes per axis, e.g. ``(5, 2, 2)``; see :class:`Session`
+    moves : ``{(i, j, k): (dx, dy, dz)}`` offsets, or scenario-style dicts
+        ``{"node": [i, j, k], "by": [...]}`` / ``{"node": ..., "to": [...]}``
+    pins : nodes kept where they rest
+    target : the volume to reach relative to the mesh's
+    options : ``padding``, ``frame``: see :class:`Session`
+
+    Returns
+    -------
+    Deformed
+        ``.mesh`` of the input's type with every input vertex moved, ``.report``,
+        ``.result``, ``.converged``.
+    """
+    session = Session(mesh, lattice, target=target, **options)
+    items = moves.items() if isinstance(moves, Mapping) else moves
+    for item in items:
+        if isinstance(item, Mapping):
+            session.move(tuple(item["node"]), by=item.get("by"), to=item.get("to"))
+        else:
+            node, offset = item
+            session.move(node, by=offset)
+    session.pin(*pins)
+    result = session.solve()
+    return Deformed(session.mesh, session.report, result)

@@ -1,0 +1,198 @@
+"""The one export path: the command line's ``--out``, the window's Export and the Python
+API's ``Session.export`` all come here.
+
+The FFD is a map of space, so the export applies it to the model file as it was read,
+not to the welded and repaired copy the solver works on:
+
+- **the same format as the model** (OBJ, PLY, STL, OFF, glTF/GLB): the file is rewritten
+  with its positions deformed and its normals transformed (the inverse transpose of the
+  deformation's Jacobian), everything else kept: vertex count and order, texture
+  coordinates, polygons, groups, materials, extra properties
+  (:mod:`isochor.core.roundtrip`, :mod:`isochor.core.gltf`); a glTF can instead carry the
+  deformation as a morph target on the original mesh;
+- **another format, or a built-in shape**: the deformed solver mesh (welded, triangles) is
+  written fresh, and a note says what of the model's own file that format does not carry.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import IsochorError
+from .formats import GLTF_FORMATS, WRITE_FORMATS, listing
+from .mesh import TriMesh
+from .meshio import mesh_bytes
+from .problem import Problem
+
+
+@dataclass(frozen=True)
+class Exported:
+    """A file to write and what the user should know about it (one sentence each)."""
+
+    data: bytes
+    notes: list[str] = field(default_factory=list)
+
+
+def export_bytes(
+    problem: Problem,
+    nodes: np.ndarray,
+    path: str | Path,
+    *,
+    morph_target: bool = False,
+) -> Exported:
+    """The deformed model as the file ``path`` names (the format by its suffix).
+
+    Parameters
+    ----------
+    problem : the model, its lattice and where it came from
+    nodes : (n, 3) the lattice node positions to deform by
+    path : the output file (its folder resolves an OBJ's material library)
+    morph_target : glTF only: keep the original positions and add the deformation as a
+        morph target with weight 1
+
+    Raises
+    ------
+    IsochorError
+        An unknown suffix; a morph target asked of another format; the model file
+        changed on disk since it was loaded.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in WRITE_FORMATS:
+        raise IsochorError(f"{path}: the file name must end in {listing(WRITE_FORMATS)}")
+    nodes = np.asarray(nodes, dtype=np.float64)
+    lattice = problem.surface.lattice
+    source = problem.model.source
+    same = source is not None and _kind(source.path.suffix) == _kind(suffix)
+    if morph_target and not (suffix in GLTF_FORMATS and same):
+        raise IsochorError(
+            f"{path}: a morph target needs a glTF model exported as glTF (.glb or .gltf)"
+        )
+    if not same:
+        mesh = TriMesh(problem.surface.deform(nodes), problem.surface.full.faces)
+        notes = _lost(problem, path) if source is not None else []
+        return Exported(mesh_bytes(mesh, suffix), notes)
+    if not source.unchanged():
+        raise IsochorError(
+            f"{source.path}: the model file changed on disk since it was opened; open it "
+            "again to export it"
+        )
+    data = source.path.read_bytes()
+
+    def deform(points: np.ndarray) -> np.ndarray:
+        return lattice.deform(points, nodes)
+
+    def jacobian(points: np.ndarray) -> np.ndarray:
+        return lattice.jacobian(points, nodes)
+
+    return _rewrite(data, source.path, path, deform, jacobian, morph_target)
+
+
+def _rewrite(
+    data: bytes,
+    source: Path,
+    out: Path,
+    deform: Callable[[np.ndarray], np.ndarray],
+    jacobian: Callable[[np.ndarray], np.ndarray],
+    morph_target: bool,
+) -> Exported:
+    suffix = source.suffix.lower()
+    if suffix in GLTF_FORMATS:
+        from .gltf import rewrite_gltf
+
+        new, notes = rewrite_gltf(
+            data,
+            suffix,
+            deform,
+            jacobian,
+            name=source.name,
+            base_dir=source.parent,
+            morph_target=morph_target,
+        )
+        if out.suffix.lower() != suffix:  # .glb <-> .gltf: same content, other container
+            new = _convert_gltf(new, suffix, out.suffix.lower(), source.name)
+        return Exported(new, list(notes))
+    from .roundtrip import rewrite
+
+    done = rewrite(
+        data,
+        suffix,
+        deform,
+        jacobian,
+        name=source.name,
+        source_dir=source.parent.absolute(),
+        out_dir=out.parent.absolute(),
+    )
+    return Exported(done.data, list(done.notes))
+
+
+def _kind(suffix: str) -> str:
+    suffix = suffix.lower()
+    return "gltf" if suffix in GLTF_FORMATS else suffix
+
+
+def _convert_gltf(data: bytes, src: str, dst: str, name: str) -> bytes:
+    import trimesh
+
+    try:
+        scene = trimesh.load(io.BytesIO(data), file_type=src[1:], process=False)
+    except Exception as exc:  # trimesh's own errors: a file we just wrote should read
+        raise IsochorError(f"{name}: cannot convert {src} to {dst}: {exc}") from None
+    if dst == ".glb":
+        return scene.export(file_type="glb")
+    files = scene.export(file_type="gltf", embed_buffers=True)
+    return next(v for k, v in files.items() if k.endswith(".gltf"))
+
+
+#: what a model file may hold beyond positions and triangles, by a quick look at its text
+_OBJ_HOLDS = {
+    "texture coordinates": re.compile(rb"^vt\s", re.M),
+    "normals": re.compile(rb"^vn\s", re.M),
+    "groups and objects": re.compile(rb"^[go]\s", re.M),
+    "materials": re.compile(rb"^(usemtl|mtllib)\s", re.M),
+    "polygons": re.compile(rb"^f(\s+\S+){4,}\s*$", re.M),
+}
+
+
+def _lost(problem: Problem, out: Path) -> list[str]:
+    """One note naming what the model's own file holds that a fresh ``out`` does not: its
+    texture coordinates, normals, polygons, groups, materials, extra properties, or its
+    vertex numbering (when welding changed it). Nothing when nothing is lost."""
+    source = problem.model.source.path
+    suffix = source.suffix.lower()
+    try:
+        data = source.read_bytes()
+    except OSError:
+        return []
+    held: list[str] = []
+    if suffix == ".obj":
+        held = [what for what, pattern in _OBJ_HOLDS.items() if pattern.search(data)]
+    elif suffix == ".ply":
+        header = data[: data.find(b"end_header")].decode("ascii", "replace")
+        props = re.findall(r"^property\s+(?:list\s+\S+\s+)?\S+\s+(\S+)", header, re.M)
+        extra = [p for p in props if p not in ("x", "y", "z", "vertex_indices", "vertex_index")]
+        held = [f"properties ({', '.join(extra)})"] if extra else []
+    elif suffix in GLTF_FORMATS:
+        held = ["texture coordinates, normals, materials and node hierarchy"]
+    if suffix not in GLTF_FORMATS:
+        from .roundtrip import positions
+
+        try:
+            raw = len(positions(data, suffix, name=source.name))
+        except IsochorError:
+            raw = problem.surface.full.n_vertices
+        if raw != problem.surface.full.n_vertices:
+            held.append(f"vertex numbering ({raw} vertices, {problem.surface.full.n_vertices} "
+                        "once the ones that share a place are welded)")  # fmt: skip
+    if not held:
+        return []
+    return [
+        f"{out.name} is the welded triangle mesh: {source.name}'s {'; '.join(held)} are not "
+        f"in it. Export as {suffix} to keep them."
+    ]

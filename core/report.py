@@ -1,0 +1,60 @@
+"""The report of a solve: one JSON-ready dict, the same for the command line's
+``--report`` and the Python API."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .problem import Problem
+from .records import SolveResult
+from .repair import count_bodies
+
+
+def make_report(
+    problem: Problem, result: SolveResult, source: str, time_s: float | None = None
+) -> dict[str, Any]:
+    """The JSON report of a solve (volumes on the full-resolution mesh), as the command
+    line writes it and the Python API returns it.
+
+    Parameters
+    ----------
+    problem : what was solved
+    result : how it ended
+    source : where the scenario came from, in words ("example torus-compression", a path)
+    time_s : the whole run's seconds (load and solve); the solve's own by default
+    """
+    sc = problem.scenario
+    return {
+        "scenario": source,
+        "model": dict(sc.model),
+        "model_path": str(sc.model_path()) if "path" in sc.model else None,
+        "lattice": list(problem.surface.lattice.shape),
+        "triangles": problem.surface.full.n_faces,
+        "bodies": count_bodies(problem.surface.full),
+        "volume_original": result.volume_original,
+        "volume_target": result.volume_target,
+        "volume_final": result.volume_final,
+        "relative_volume_error": result.rel_volume_error,
+        "target_volume_ratio": sc.target_volume_ratio,
+        "converged": bool(result.converged),
+        "message": result.message,
+        "terminal_level": result.terminal_level,
+        "levels": [
+            {
+                "level": s.level,
+                "triangles": s.triangles,
+                "steps": s.steps,
+                "time_s": s.time_s,
+                "max_node_change": s.max_node_change,
+                "relative_volume_error": s.rel_volume_error,
+            }
+            for s in result.levels
+        ],
+        "pyramid": [m.n_faces for m in problem.surface.levels],
+        "nodes": [[float(x) for x in row] for row in result.nodes],
+        "free_nodes": result.free_nodes,
+        "energy": result.energy,
+        "solve_time_s": result.elapsed,
+        "time_s": result.elapsed if time_s is None else time_s,
+        "warnings": list(problem.warnings),
+    }
