@@ -1,0 +1,199 @@
+"""The Python API (isochor.deform, isochor.Session, isochor.load): the types it takes and
+gives back, the volume kept (measured by trimesh, not by core), the pyramid reused."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import isochor
+import isochor.core.lattice
+from isochor.core.meshio import save_mesh
+from tests.models import icosphere, model
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def ball(subdivisions: int = 3) -> trimesh.Trimesh:
+    """An icosphere with texture coordinates (a UV per vertex) that must survive."""
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
+    uv = mesh.vertices[:, :2] * 0.5 + 0.5
+    mesh.visual = trimesh.visual.TextureVisuals(uv=uv)
+    return mesh
+
+
+def volume(vertices, faces) -> float:
+    return float(trimesh.Trimesh(vertices, faces, process=False).volume)
+
+
+def test_deform_a_trimesh_gives_a_trimesh_with_its_vertices_and_uvs():
+    mesh = ball()
+    before = mesh.vertices.copy()
+    out = isochor.deform(mesh, (3, 3, 3), moves={(2, 1, 1): (0.5, 0, 0)}, pins=[(0, 1, 1)])
+    assert isinstance(out.mesh, trimesh.Trimesh) and out.converged
+    assert np.array_equal(mesh.vertices, before)  # the input is left alone
+    assert out.mesh.vertices.shape == mesh.vertices.shape
+    assert np.array_equal(out.mesh.faces, mesh.faces)
+    assert np.array_equal(out.mesh.visual.uv, mesh.visual.uv)
+    assert out.mesh.vertices[:, 0].max() > mesh.vertices[:, 0].max() + 0.1  # stretched
+    assert out.mesh.volume == pytest.approx(mesh.volume, rel=5e-4)
+    assert out.report["converged"] is True and out.report["lattice"] == [3, 3, 3]
+
+
+def test_deform_arrays_gives_arrays_and_a_target_volume():
+    mesh = icosphere(3)
+    vertices, faces = isochor.deform(
+        (mesh.vertices, mesh.faces),
+        (3, 3, 3),
+        moves=[{"node": [1, 1, 2], "by": [0, 0, -0.4]}],
+        target=0.8,
+    ).mesh
+    assert isinstance(vertices, np.ndarray) and vertices.shape == mesh.vertices.shape
+    assert volume(vertices, faces) == pytest.approx(
+        0.8 * volume(mesh.vertices, mesh.faces), rel=1e-3
+    )
+
+
+def test_deform_a_pyvista_mesh_gives_a_pyvista_mesh():
+    pv = pytest.importorskip("pyvista", reason="pyvista is the viewport's library")
+    sphere = pv.Sphere(theta_resolution=24, phi_resolution=24)
+    out = isochor.deform(sphere, (3, 3, 3), moves={(0, 0, 0): (-0.2, -0.2, -0.2)})
+    assert isinstance(out.mesh, pv.PolyData) and out.mesh.n_points == sphere.n_points
+    faces = np.asarray(sphere.triangulate().faces).reshape(-1, 4)[:, 1:]
+    assert volume(out.mesh.points, faces) == pytest.approx(volume(sphere.points, faces), rel=5e-4)
+
+
+@pytest.mark.parametrize(
+    ("mesh", "words"),
+    [
+        (42, r"\(vertices, faces\) arrays, a trimesh.Trimesh or a pyvista.PolyData; got int"),
+        ("no-such-file.obj", "no-such-file.obj.*no such file"),  # a string is a path
+        ((np.zeros((4, 2)), np.array([[0, 1, 2]])), r"vertices must be an \(n, 3\) array"),
+        ((np.zeros((3, 3)), np.array([[0, 1, 5]])), "a vertex that does not exist"),
+        ((icosphere(1).vertices, icosphere(1).faces[1:]), "not closed"),
+    ],
+)
+def test_a_bad_mesh_is_one_sentence(mesh, words):
+    with pytest.raises(isochor.IsochorError, match=words):
+        isochor.deform(mesh, (3, 3, 3))
+
+
+def test_bad_lattices_and_nodes_are_the_scenario_files_words():
+    with pytest.raises(isochor.IsochorError, match="lattice.nodes: each axis needs 2 to 10"):
+        isochor.Session(ball(), (11, 3, 3))
+    with pytest.raises(isochor.IsochorError, match="target_volume_ratio: must be from"):
+        isochor.Session(ball(), target=-1)
+    session = isochor.Session(ball(), (3, 3, 3))
+    with pytest.raises(isochor.IsochorError, match="node .* is not a node of the 3x3x3"):
+        session.pin((3, 0, 0))
+    with pytest.raises(isochor.IsochorError, match="exactly one of by= or to="):
+        session.move((0, 0, 0))
+
+
+def test_a_session_solves_three_edits_reusing_its_pyramid(monkeypatch):
+    session = isochor.Session(ball(4), (3, 3, 3))
+    assert session.lattice.shape == (3, 3, 3)
+    session.pin((0, 1, 1))
+    session.move((2, 1, 1), by=(0.3, 0, 0))
+    first = session.solve()
+    assert first.converged
+
+    bases = []
+    real = isochor.core.lattice.Lattice.basis
+    monkeypatch.setattr(
+        isochor.core.lattice.Lattice, "basis", lambda self, p: bases.append(len(p)) or real(self, p)
+    )
+    monkeypatch.setattr(isochor.core.api, "build_pyramid", None)  # would fail if called
+    session.move((2, 1, 1), by=(0.2, 0, 0))
+    second = session.solve()
+    corner = session.lattice.index(2, 2, 2)
+    was = session.nodes[corner].copy()  # a free node: where the second solve put it
+    records = list(_steps(session, lambda s: s.move((2, 2, 2), by=(0, 0.2, 0))))
+    assert second.converged and records and records[-1].level_done
+    assert bases == []  # every level's basis came from the first solve's cache
+    assert session.result.converged
+    np.testing.assert_allclose(session.nodes[corner], was + (0, 0.2, 0))  # by: from there
+    assert session.mesh.volume == pytest.approx(ball(4).volume, rel=5e-4)
+
+
+def _steps(session, edit):
+    edit(session)
+    gen = session.steps()
+    while True:
+        try:
+            yield next(gen)
+        except StopIteration:
+            return
+
+
+def test_a_closed_step_generator_keeps_the_nodes():
+    session = isochor.Session(ball(), (3, 3, 3))
+    session.move((2, 1, 1), by=(0.3, 0, 0))
+    before = session.nodes.copy()
+    steps = session.steps()
+    next(steps)
+    steps.close()
+    assert np.array_equal(session.nodes, before) and session.result is None
+    with pytest.raises(isochor.IsochorError, match="nothing solved yet"):
+        _ = session.report
+
+
+def test_load_a_model_file_export_and_save_a_scenario(tmp_path):
+    save_mesh(tmp_path / "ball.obj", icosphere(3))
+    session = isochor.load(tmp_path / "ball.obj", lattice=(3, 3, 3))
+    session.move((2, 1, 1), by=(0.3, 0, 0))
+    session.pin((0, 1, 1))
+    session.solve()
+    notes = session.export(tmp_path / "out.obj")
+    assert notes == []
+    out = trimesh.load(tmp_path / "out.obj", process=False)
+    assert len(out.vertices) == icosphere(3).n_vertices
+    assert out.volume == pytest.approx(volume(icosphere(3).vertices, icosphere(3).faces), rel=5e-4)
+    with pytest.raises(isochor.IsochorError, match="would overwrite the model"):
+        session.export(tmp_path / "ball.obj")
+    session.save(tmp_path / "scene.json")
+    again = isochor.load(tmp_path / "scene.json")
+    assert again.lattice.shape == (3, 3, 3)
+    assert np.array_equal(again.fixed, session.fixed)
+    np.testing.assert_allclose(again.nodes[again.fixed], session.nodes[session.fixed])
+    assert json.loads((tmp_path / "scene.json").read_text())["model"]["path"] == "ball.obj"
+
+
+def test_a_mesh_from_memory_exports_but_has_no_scenario(tmp_path):
+    session = isochor.Session(ball(), (3, 3, 3))
+    session.move((2, 1, 1), by=(0.3, 0, 0))
+    session.solve()
+    session.export(tmp_path / "ball.glb")
+    back = trimesh.load(tmp_path / "ball.glb", force="mesh", process=False)
+    assert len(back.vertices) == len(ball().vertices)
+    np.testing.assert_allclose(back.visual.uv, ball().visual.uv, atol=1e-6)
+    with pytest.raises(isochor.IsochorError, match="no file a scenario can name"):
+        session.save(tmp_path / "s.json")
+
+
+def test_the_cow_from_a_file_keeps_its_volume():
+    path = model("cow.obj")
+    session = isochor.load(path)
+    assert session.lattice.shape == (4, 3, 3)  # the editor's default for a long model
+    session.move((0, 1, 1), by=(0, 1.0, 0))
+    session.pin((3, 1, 1))
+    assert session.solve().converged
+    assert session.report["volume_final"] == pytest.approx(
+        session.report["volume_original"], rel=5e-4
+    )
+
+
+def test_the_readme_scripting_example_runs(tmp_path, monkeypatch):
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("## Scripting") :]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    exec(compile(code, "README.md", "exec"), namespace)  # our own README
+    assert namespace["result"].converged
+    assert (tmp_path / "squashed.obj").exists()
