@@ -16,7 +16,6 @@ not to the welded and repaired copy the solver works on:
 
 from __future__ import annotations
 
-import io
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -114,9 +113,8 @@ def _rewrite(
             name=source.name,
             base_dir=source.parent,
             morph_target=morph_target,
+            out_suffix=out.suffix.lower(),  # .glb <-> .gltf: the same content
         )
-        if out.suffix.lower() != suffix:  # .glb <-> .gltf: same content, other container
-            new = _convert_gltf(new, suffix, out.suffix.lower(), source.name)
         return Exported(new, list(notes))
     from .roundtrip import rewrite
 
@@ -135,19 +133,6 @@ def _rewrite(
 def _kind(suffix: str) -> str:
     suffix = suffix.lower()
     return "gltf" if suffix in GLTF_FORMATS else suffix
-
-
-def _convert_gltf(data: bytes, src: str, dst: str, name: str) -> bytes:
-    import trimesh
-
-    try:
-        scene = trimesh.load(io.BytesIO(data), file_type=src[1:], process=False)
-    except Exception as exc:  # trimesh's own errors: a file we just wrote should read
-        raise IsochorError(f"{name}: cannot convert {src} to {dst}: {exc}") from None
-    if dst == ".glb":
-        return scene.export(file_type="glb")
-    files = scene.export(file_type="gltf", embed_buffers=True)
-    return next(v for k, v in files.items() if k.endswith(".gltf"))
 
 
 #: what a model file may hold beyond positions and triangles, by a quick look at its text

@@ -311,16 +311,16 @@ def test_missing_file_and_folder(tmp_path):
 
 
 # -- writing ------------------------------------------------------------------------------
-@pytest.mark.parametrize("suffix", [".obj", ".ply", ".stl", ".OBJ"])
+@pytest.mark.parametrize("suffix", [".obj", ".ply", ".stl", ".OBJ", ".off", ".glb", ".gltf"])
 def test_save_then_load_gives_the_same_mesh(tmp_path, suffix):
     mesh = icosphere(3, 1.7, center=(1e3, -2.5, 1 / 3))
     path = tmp_path / f"out{suffix}"
     save_mesh(path, mesh)
-    back = trimesh.load_mesh(str(path), process=False)
+    back = trimesh.load(str(path), process=False, force="mesh")
     back.merge_vertices()
     assert len(back.faces) == mesh.n_faces
     assert back.is_watertight and back.is_winding_consistent
-    exact = suffix.lower() != ".stl"  # STL stores float32 by definition
+    exact = suffix.lower() not in (".stl", ".glb", ".gltf")  # float32 by their definitions
     assert back.volume == pytest.approx(volume(mesh), rel=1e-12 if exact else 1e-5)
     ours = load_mesh(path).mesh
     if exact:
@@ -331,8 +331,8 @@ def test_save_then_load_gives_the_same_mesh(tmp_path, suffix):
 
 def test_save_refuses_unknown_formats_and_missing_folders(tmp_path):
     mesh = icosphere(1)
-    with pytest.raises(IsochorError, match="OBJ, PLY, STL"):
-        save_mesh(tmp_path / "out.off", mesh)
+    with pytest.raises(IsochorError, match="OBJ, PLY, STL, OFF, GLB, GLTF"):
+        save_mesh(tmp_path / "out.3ds", mesh)
     with pytest.raises(IsochorError, match="does not exist"):
         save_mesh(tmp_path / "no" / "such" / "out.ply", mesh)
     assert list(tmp_path.iterdir()) == []
