@@ -90,7 +90,14 @@ def export_bytes(
     def jacobian(points: np.ndarray) -> np.ndarray:
         return lattice.jacobian(points, nodes)
 
-    return _rewrite(data, source.path, path, deform, jacobian, morph_target)
+    exported = _rewrite(data, source.path, path, deform, jacobian, morph_target)
+    repairs = [w for w in problem.model.warnings if _REPAIRS.search(w)]
+    if repairs:  # the file's own faces are kept: what the solve's copy had repaired is not
+        exported.notes.append(
+            f"{path.name} keeps {source.path.name}'s own faces as they were; the repairs made "
+            f"for the solve are not in it ({' '.join(repairs)})"
+        )
+    return exported
 
 
 def _rewrite(
@@ -135,13 +142,16 @@ def _kind(suffix: str) -> str:
     return "gltf" if suffix in GLTF_FORMATS else suffix
 
 
+#: load warnings that changed the surface the solver works on (not the file's own faces)
+_REPAIRS = re.compile(r"winding|turned to face|degenerate|duplicate", re.I)
+
 #: what a model file may hold beyond positions and triangles, by a quick look at its text
 _OBJ_HOLDS = {
-    "texture coordinates": re.compile(rb"^vt\s", re.M),
-    "normals": re.compile(rb"^vn\s", re.M),
-    "groups and objects": re.compile(rb"^[go]\s", re.M),
-    "materials": re.compile(rb"^(usemtl|mtllib)\s", re.M),
-    "polygons": re.compile(rb"^f(\s+\S+){4,}\s*$", re.M),
+    "texture coordinates": re.compile(rb"^vt[ \t]", re.M),
+    "normals": re.compile(rb"^vn[ \t]", re.M),
+    "groups and objects": re.compile(rb"^[go][ \t]", re.M),
+    "materials": re.compile(rb"^(usemtl|mtllib)[ \t]", re.M),
+    "polygons": re.compile(rb"^f([ \t]+\S+){4,}[ \t]*\r?$", re.M),
 }
 
 

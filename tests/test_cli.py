@@ -60,7 +60,7 @@ def solve_cli(tmp_path, scenario, out_name="out.ply", extra=()):
 # (model, edit, output format): bends and squashes with 5x2x2 and 4x3x3 lattices
 CASES = [
     ("cow.obj", "bend", ".ply"),
-    ("cow_flipped_patch.obj", "squash", ".obj"),
+    ("cow_flipped_patch.obj", "squash", ".ply"),
     ("spot_triangulated.obj", "squash", ".stl"),
     ("bunny_watertight.obj", "bend", ".ply"),
     ("kitten.obj", "bend", ".obj"),
@@ -113,11 +113,33 @@ def test_model_solves_and_the_export_keeps_the_volume(tmp_path, capsys, name, ed
     rows = [line.split() for line in captured.out.splitlines()[1:] if line[:5].strip().isdigit()]
     assert [int(r[0]) for r in rows] == [lvl["level"] for lvl in report["levels"]]
     assert [int(r[1]) for r in rows] == [lvl["triangles"] for lvl in report["levels"]]
+    warned = [line for line in captured.err.splitlines() if "isochor: warning:" in line]
     if name in ("cow_flipped_patch.obj", "multibody_inconsistent_winding.stl"):
-        assert report["warnings"] and "isochor: warning:" in captured.err
+        assert report["warnings"] and warned
     else:
-        assert report["warnings"] == [] and captured.err == ""
+        assert report["warnings"] == [] and warned == []
+    # what the other format cannot carry is said, once, and in the report too
+    notes = [line for line in captured.err.splitlines() if line.startswith("isochor: note:")]
+    assert len(notes) == len(report["export_notes"])
+    if name in ("spot_triangulated.obj", "torus_knot_quads.obj"):
+        assert "texture coordinates" in notes[0] or "normals" in notes[0], notes
     assert report["bodies"] == (2 if name.startswith("multibody") else 1)
+
+
+def test_a_repaired_model_exported_in_its_own_format_keeps_its_own_faces(tmp_path, capsys):
+    """cow_flipped_patch.obj has 300 triangles wound the wrong way: the solver works on the
+    repaired cow; the export in OBJ keeps the file's faces as they were (the same asset),
+    says so, and the same repair of the exported file gives the preserved volume."""
+    path = model("cow_flipped_patch.obj")
+    status, report, out = solve_cli(tmp_path, squash_scenario(path), "out.obj")
+    err = capsys.readouterr().err
+    assert status == 0 and report["converged"], err
+    faces = lambda p: [ln for ln in p.read_text().splitlines() if ln.startswith("f ")]  # noqa: E731
+    assert faces(out) == faces(path)
+    assert "keeps cow_flipped_patch.obj's own faces as they were" in err
+    assert any("own faces" in note for note in report["export_notes"])
+    again = load_mesh(out)
+    assert again.volume == pytest.approx(trimesh_volume(model("cow.obj")), rel=1e-3)
 
 
 def test_cow_bending_plate_4(tmp_path, capsys):
@@ -268,7 +290,7 @@ def test_outputs_are_checked_before_solving(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setattr(isochor.core.multilevel, "solve", no_solve)
     for argv, text in (
-        (["--out", str(tmp_path / "x.off")], "x.off"),
+        (["--out", str(tmp_path / "x.3ds")], "x.3ds"),
         (["--out", str(tmp_path / "no" / "x.ply")], "does not exist"),
         (["--report", str(tmp_path / "no" / "r.json")], "does not exist"),
         (["--out", str(tmp_path)], "folder"),
