@@ -247,8 +247,14 @@ def _solve(args: argparse.Namespace) -> int:
     outputs = check_outputs(wanted, inputs)
     if args.out is not None and args.out.suffix.lower() not in WRITE_FORMATS:
         raise IsochorError(f"{args.out}: --out must end in {listing(WRITE_FORMATS)}")
-    if args.morph_target and (args.out is None or args.out.suffix.lower() not in (".glb", ".gltf")):
-        raise IsochorError("--morph-target needs --out ending in .glb or .gltf")
+    gltf = (".glb", ".gltf")
+    if args.morph_target and (
+        args.out is None
+        or args.out.suffix.lower() not in gltf
+        or "path" not in scenario.model
+        or scenario.model_path().suffix.lower() not in gltf
+    ):
+        raise IsochorError("--morph-target needs a glTF model and --out ending in .glb or .gltf")
     t0 = time.perf_counter()
     problem = build(scenario)
     for w in problem.warnings:
@@ -260,8 +266,6 @@ def _solve(args: argparse.Namespace) -> int:
     exported = None
     if args.out is not None:
         exported = export_bytes(problem, result.nodes, args.out, morph_target=args.morph_target)
-        for note in exported.notes:
-            print(f"isochor: note: {note}", file=sys.stderr)
     report = make_report(problem, result, source, total)
     report["export_notes"] = list(exported.notes) if exported is not None else []
     # everything is computed before anything is written: an error or a signal up to here
@@ -275,6 +279,8 @@ def _solve(args: argparse.Namespace) -> int:
     # a signal stops the run until the first output is renamed into place; from then on
     # the run completes (the files are in place, so exit 0 or 3 is the truth)
     write_outputs(files, on_commit=interrupts.hold)
+    for note in exported.notes if exported is not None else ():
+        print(f"isochor: note: {note}", file=sys.stderr)
     _summary(result, args, console)
     if not result.converged:
         print(f"isochor: the solve did not converge: {result.message}", file=sys.stderr)
