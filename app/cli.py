@@ -227,7 +227,7 @@ def _examples(args: argparse.Namespace) -> int:
 def _solve(args: argparse.Namespace) -> int:
     from ..core.atomic import check_outputs, write_outputs
     from ..core.export import export_bytes
-    from ..core.formats import WRITE_FORMATS, listing
+    from ..core.formats import GLTF_FORMATS, WRITE_FORMATS, listing
     from ..core.problem import build
     from ..core.report import make_report
     from ..core.scenario import Scenario
@@ -247,12 +247,11 @@ def _solve(args: argparse.Namespace) -> int:
     outputs = check_outputs(wanted, inputs)
     if args.out is not None and args.out.suffix.lower() not in WRITE_FORMATS:
         raise IsochorError(f"{args.out}: --out must end in {listing(WRITE_FORMATS)}")
-    gltf = (".glb", ".gltf")
     if args.morph_target and (
         args.out is None
-        or args.out.suffix.lower() not in gltf
+        or args.out.suffix.lower() not in GLTF_FORMATS
         or "path" not in scenario.model
-        or scenario.model_path().suffix.lower() not in gltf
+        or scenario.model_path().suffix.lower() not in GLTF_FORMATS
     ):
         raise IsochorError("--morph-target needs a glTF model and --out ending in .glb or .gltf")
     t0 = time.perf_counter()

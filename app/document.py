@@ -23,10 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.atomic import check_outputs, write_outputs
 from ..core.errors import IsochorError
 from ..core.examples import example_scenario
-from ..core.export import export_bytes
+from ..core.export import export_file
 from ..core.formats import READ_FORMATS, SCENARIO_SUFFIXES, is_model, is_scenario, listing
 from ..core.lattice import MAX_NODES, MIN_NODES
 from ..core.mesh import TriMesh
@@ -379,14 +378,8 @@ class Document:
         """Write the deformed model through the one export path (:mod:`isochor.core.export`):
         in the model's own format it keeps everything but the positions. Never over the
         model file it was made from. Returns the notes for the user."""
-        problem = self.state.problem
-        sc = problem.scenario
-        model = [(sc.model_path(), "the model")] if "path" in sc.model else []
-        outputs = check_outputs([(path, "the export")], model, probe=False)
         nodes = self.base_nodes() if nodes is None else nodes
-        exported = export_bytes(problem, nodes, path)
-        write_outputs([(outputs[0], exported.data)])
-        return exported.notes
+        return export_file(self.state.problem, nodes, path)
 
 
 def _key_of(scenario: Scenario) -> tuple:

@@ -26,7 +26,7 @@ import numpy as np
 
 from .atomic import atomic_write_bytes
 from .errors import IsochorError
-from .export import export_bytes
+from .export import export_file
 from .formats import WRITE_FORMATS, is_scenario, listing
 from .generators import run_to_end
 from .lattice import Lattice
@@ -279,10 +279,7 @@ class Session:
             data = self._mesh.file_bytes(self.deformed_vertices(), Path(path))
             atomic_write_bytes(path, data)
             return []
-        exported = export_bytes(self.problem, self.nodes, path, morph_target=morph_target)
-        model = self.problem.model.source
-        atomic_write_bytes(path, exported.data, [(model.path, "the model")] if model else [])
-        return exported.notes
+        return export_file(self.problem, self.nodes, path, morph_target=morph_target)
 
     def scenario(self) -> Scenario:
         """The current edit as a scenario: moved nodes as ``to`` moves, pins, the target."""

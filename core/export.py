@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import check_outputs, write_outputs
 from .errors import IsochorError
 from .formats import GLTF_FORMATS, WRITE_FORMATS, listing
 from .mesh import TriMesh
@@ -98,6 +99,25 @@ def export_bytes(
             f"for the solve are not in it ({' '.join(repairs)})"
         )
     return exported
+
+
+def export_file(
+    problem: Problem,
+    nodes: np.ndarray,
+    path: str | Path,
+    *,
+    morph_target: bool = False,
+) -> list[str]:
+    """Write :func:`export_bytes` to ``path`` atomically, never over the model file it was
+    made from (checked before any work); returns the notes for the user. The window's
+    Export and the API's ``Session.export`` (the command line writes it with its report,
+    as a set)."""
+    source = problem.model.source
+    inputs = [(source.path, "the model")] if source is not None else []
+    output = check_outputs([(path, "the export")], inputs, probe=False)[0]
+    exported = export_bytes(problem, nodes, path, morph_target=morph_target)
+    write_outputs([(output, exported.data)])
+    return exported.notes
 
 
 def _rewrite(

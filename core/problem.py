@@ -92,12 +92,6 @@ def load_model(path: str | Path) -> Model:
     return Model(tuple(build_pyramid(loaded.mesh)), tuple(loaded.warnings), source)
 
 
-def load_levels(path: str | Path) -> tuple[list[TriMesh], list[str]]:
-    """The level pyramid of a model file and the warnings of loading it."""
-    model = load_model(path)
-    return list(model.levels), list(model.warnings)
-
-
 #: a move may take a node at most this many lattice sizes away (a bigger one is a mistake
 #: of units or of typing, and its numbers would overflow long before it meant anything)
 MAX_MOVE = 1000.0

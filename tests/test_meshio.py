@@ -13,7 +13,7 @@ from scipy.spatial import ConvexHull
 from isochor.core.errors import IsochorError
 from isochor.core.mesh import TriMesh
 from isochor.core.meshio import load_mesh, mesh_bytes, save_mesh
-from isochor.core.problem import load_levels
+from isochor.core.problem import load_model
 from isochor.core.repair import EdgeReport, clean_closed_surface, count_bodies
 from isochor.core.volume import signed_volume
 from tests.models import CLOSED, OPEN, box, icosphere, joined, model, trimesh_volume
@@ -357,10 +357,11 @@ def test_save_is_atomic_and_keeps_normal_permissions(tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["out.ply"]
 
 
-def test_load_levels_gives_a_pyramid_ending_with_the_full_mesh(tmp_path):
+def test_load_model_gives_a_pyramid_ending_with_the_full_mesh(tmp_path):
     sphere = icosphere(4)
     save_mesh(tmp_path / "s.ply", sphere)
-    levels, warns = load_levels(tmp_path / "s.ply")
+    model_ = load_model(tmp_path / "s.ply")
+    levels, warns = list(model_.levels), list(model_.warnings)
     assert warns == []
     assert np.array_equal(levels[-1].vertices, sphere.vertices)
     assert [m.n_faces for m in levels][-1] == sphere.n_faces
