@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import signal
 from contextlib import suppress
+from dataclasses import dataclass, field
 
 SIGNALS = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
@@ -40,12 +41,14 @@ class Interrupted(KeyboardInterrupt):
         return 128 + self.signum
 
 
+@dataclass
 class State:
-    """What the handler does: ``armed``, raise; otherwise only note the signal."""
+    """What the handler does: ``armed``, raise; otherwise only note the signal. ``previous``:
+    the handlers :func:`install` replaced, for :func:`release`."""
 
-    armed = False
+    armed: bool = False
     pending: int | None = None
-    previous: dict[int, object] = {}
+    previous: dict[int, object] = field(default_factory=dict)
 
 
 state = State()
