@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import signal
 from contextlib import suppress
-from dataclasses import dataclass, field
 
 SIGNALS = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
@@ -41,14 +40,12 @@ class Interrupted(KeyboardInterrupt):
         return 128 + self.signum
 
 
-@dataclass
 class State:
-    """What the handler does: ``armed``, raise; otherwise only note the signal. ``previous``:
-    the handlers :func:`install` replaced, for :func:`release`."""
+    """What the handler does: ``armed``, raise; otherwise only note the signal."""
 
-    armed: bool = False
+    armed = False
     pending: int | None = None
-    previous: dict[int, object] = field(default_factory=dict)
+    previous: dict[int, object] = {}
 
 
 state = State()
