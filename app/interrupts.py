@@ -41,7 +41,11 @@ class Interrupted(KeyboardInterrupt):
 
 
 class State:
-    """What the handler does: ``armed``, raise; otherwise only note the signal."""
+    """What the handler does: ``armed``, raise; otherwise only note the signal.
+
+    A plain class, not a dataclass: this module runs before the handlers are installed,
+    so it imports nothing heavier than ``signal`` and ``contextlib`` (``dataclasses``
+    brings ``inspect`` and widens the window in which Ctrl-C gives a traceback)."""
 
     armed = False
     pending: int | None = None
