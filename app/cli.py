@@ -304,7 +304,7 @@ def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:
         problem.surface,
         problem.nodes,
         problem.fixed,
-        target_ratio=sc.target_volume_ratio,
+        goal=sc.goal,
         options=problem.options,
     )
     if out is not None:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from .atomic import atomic_write_bytes
+from .constraints import Goal
 from .errors import IsochorError
 from .export import export_file
 from .formats import WRITE_FORMATS, is_scenario, listing
@@ -38,7 +39,7 @@ from .pyramid import build_pyramid
 from .records import Progress, SolveResult
 from .repair import clean_closed_surface
 from .report import make_report
-from .scenario import Move, Scenario
+from .scenario import GOAL_DEFAULTS, VERSION, Move, Scenario
 
 Node = tuple[int, int, int]
 
@@ -139,6 +140,15 @@ class Session:
     frame : ``(origin, axes)``: an explicit lattice box instead (rows of ``axes`` are its
         three edge vectors)
     target : the volume to reach, relative to the model's (1 keeps it)
+    preserve : ``"total"`` (one volume, the default) or ``"per-body"`` (each closed body
+        keeps its own)
+    keep_centroid : also keep the solid's centre of mass where it was
+    anchor : ``"far-side"`` (the default: while too little is fixed to hold the lattice,
+        the face away from the moved nodes stays put) or ``"none"`` (the paper's behaviour)
+    fold_guard : penalise folding the model inside out (default True)
+
+    A scenario file's own settings are the defaults of a session on it. The settings are
+    attributes of the same names (``target`` for the ratio) and may change between solves.
 
     Examples
     --------
@@ -158,6 +168,10 @@ class Session:
         padding: float | None = None,
         frame: tuple[Sequence[float], Sequence[Sequence[float]]] | None = None,
         target: float | None = None,
+        preserve: str | None = None,
+        keep_centroid: bool | None = None,
+        anchor: str | None = None,
+        fold_guard: bool | None = None,
     ) -> None:
         self._mesh: _Mesh | None = None
         if isinstance(source, (str, Path)):
@@ -178,11 +192,18 @@ class Session:
             changes["frame"] = (list(frame[0]), [list(a) for a in frame[1]])
         if target is not None:
             changes["target_volume_ratio"] = target
+        goal = {"preserve": preserve, "keep_centroid": keep_centroid, "anchor": anchor}
+        goal["fold_guard"] = fold_guard
+        changes.update({k: v for k, v in goal.items() if v is not None})
         scenario = _checked(scenario, changes)
         self.problem: Problem = build(scenario, model=model)
         self.nodes = self.problem.nodes.copy()
+        #: (n, 3) bool: the fixed coordinates of every node
         self.fixed = self.problem.fixed.copy()
+        #: what the next solve holds; the attributes may be changed between solves
         self.target = float(scenario.target_volume_ratio)
+        self.preserve, self.keep_centroid = scenario.preserve, scenario.keep_centroid
+        self.anchor, self.fold_guard = scenario.anchor, scenario.fold_guard
         self.result: SolveResult | None = None
 
     # -- the lattice ------------------------------------------------------------------------
@@ -217,15 +238,25 @@ class Session:
         self.nodes[r] = new
         self.fixed[r] = True
 
-    def pin(self, *nodes: Node) -> None:
-        """Keep these nodes where they are in the next solves."""
+    def pin(self, *nodes: Node, axes: str = "xyz") -> None:
+        """Keep these nodes where they are in the next solves; on some ``axes`` only
+        (``"z"``: the node keeps its z and may slide in x and y)."""
+        if not isinstance(axes, str) or not axes or set(axes) - set("xyz"):
+            raise IsochorError(f'pin: axes must be some of "xyz", got {axes!r}')
+        columns = ["xyz".index(a) for a in sorted(set(axes))]
         for node in nodes:
-            self.fixed[self._row(node)] = True
+            self.fixed[self._row(node), columns] = True
 
     def unpin(self, *nodes: Node) -> None:
         """Free these nodes (moved or pinned): the next solve places them."""
         for node in nodes:
             self.fixed[self._row(node)] = False
+
+    @property
+    def goal(self) -> Goal:
+        """What the next solve holds (from ``target``, ``preserve``, ``keep_centroid``,
+        ``anchor`` and ``fold_guard``)."""
+        return Goal(self.target, self.preserve, self.keep_centroid, self.anchor, self.fold_guard)
 
     # -- solving -----------------------------------------------------------------------------
     def steps(self) -> Generator[Progress, None, SolveResult]:
@@ -236,7 +267,7 @@ class Session:
             self.problem.surface,
             self.nodes,
             self.fixed,
-            target_ratio=self.target,
+            goal=self.goal,
             options=self.problem.options,
         )
         self.nodes = np.array(result.nodes)
@@ -282,16 +313,33 @@ class Session:
         return export_file(self.problem, self.nodes, path, morph_target=morph_target)
 
     def scenario(self) -> Scenario:
-        """The current edit as a scenario: moved nodes as ``to`` moves, pins, the target."""
+        """The current edit as a scenario: moved nodes as ``to`` moves, pins (on some axes
+        where so pinned), the goal. A node pinned on some axes is saved as pinned at rest."""
         rest = self.lattice.rest_nodes
-        moved = self.fixed & np.any(self.nodes != rest, axis=1)
+        whole = self.fixed.all(axis=1)
+        moved = whole & np.any(self.nodes != rest, axis=1)
         lat = self.lattice
         moves = tuple(
             Move(lat.ijk(r), to=tuple(float(x) for x in self.nodes[r]))
             for r in np.flatnonzero(moved)
         )
-        pins = tuple(lat.ijk(r) for r in np.flatnonzero(self.fixed & ~moved))
-        return self.problem.scenario.with_(moves=moves, pins=pins, target_volume_ratio=self.target)
+        pins = tuple(lat.ijk(r) for r in np.flatnonzero(whole & ~moved))
+        partial = self.fixed.any(axis=1) & ~whole
+        axis_pins = tuple(
+            (lat.ijk(r), "".join(a for a, f in zip("xyz", self.fixed[r]) if f))
+            for r in np.flatnonzero(partial)
+        )
+        goal = self.goal
+        return self.problem.scenario.with_(
+            moves=moves,
+            pins=pins,
+            axis_pins=axis_pins,
+            target_volume_ratio=goal.target_ratio,
+            preserve=goal.preserve,
+            keep_centroid=goal.keep_centroid,
+            anchor=goal.anchor,
+            fold_guard=goal.fold_guard,
+        )
 
     def save(self, path: str | Path) -> None:
         """Save the current edit as a scenario file (the model must be a file or a
@@ -321,6 +369,9 @@ def _checked(scenario: Scenario, changes: dict[str, Any]) -> Scenario:
         lat["frame"] = {"origin": changes["frame"][0], "axes": changes["frame"][1]}
     if "target_volume_ratio" in changes:
         doc["target_volume_ratio"] = changes["target_volume_ratio"]
+    for key in GOAL_DEFAULTS:
+        if key in changes:
+            doc[key], doc["version"] = changes[key], VERSION
     if "moves" in changes:
         doc["moves"], doc["pins"] = [], []
     checked = Scenario.from_dict(doc)
@@ -348,7 +399,7 @@ def deform(
     lattice: Sequence[int] | None = None,
     *,
     moves: Mapping[Node, Sequence[float]] | Iterable[Mapping[str, Any]] = (),
-    pins: Iterable[Node] = (),
+    pins: Iterable[Node | Mapping[str, Any]] = (),
     target: float = 1.0,
     **options: Any,
 ) -> Deformed:
@@ -361,9 +412,11 @@ def deform(
     lattice : nodes per axis, e.g. ``(5, 2, 2)``; see :class:`Session`
     moves : ``{(i, j, k): (dx, dy, dz)}`` offsets, or scenario-style dicts
         ``{"node": [i, j, k], "by": [...]}`` / ``{"node": ..., "to": [...]}``
-    pins : nodes kept where they rest
+    pins : nodes kept where they rest, or ``{"node": (i, j, k), "axes": "z"}`` for a node
+        kept on some axes only
     target : the volume to reach relative to the mesh's
-    options : ``padding``, ``frame``: see :class:`Session`
+    options : ``padding``, ``frame``, ``preserve``, ``keep_centroid``, ``anchor``,
+        ``fold_guard``: see :class:`Session`
 
     Returns
     -------
@@ -379,6 +432,10 @@ def deform(
         else:
             node, offset = item
             session.move(node, by=offset)
-    session.pin(*pins)
+    for pin in pins:
+        if isinstance(pin, Mapping):
+            session.pin(tuple(pin["node"]), axes=pin.get("axes", "xyz"))
+        else:
+            session.pin(pin)
     result = session.solve()
     return Deformed(session.mesh, session.report, result)

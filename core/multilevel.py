@@ -29,39 +29,24 @@ from functools import cached_property
 
 import numpy as np
 
+from .anchor import held_face
+from .constraints import Bodies, Constraints, Goal, Level
 from .errors import IsochorError
+from .folds import FoldCheck, FoldGuard, interior_points
 from .generators import relay
-from .lattice import Lattice, PointBasis
+from .lattice import Lattice
 from .mesh import TriMesh
+from .outcome import outcome
 from .records import LevelStats, Progress, SolveResult, frozen_copy
-from .solver import LevelProblem, SolverOptions, augmented_lagrangian
+from .solver import LevelProblem, SolverOptions, augmented_lagrangian, worst
 from .springs import SpringNetwork
-from .volume import VolumeOperator, signed_volume
+from .volume import signed_volume
 
-
-class _Level:
-    """What one pyramid level needs for fast evaluations, computed once."""
-
-    def __init__(self, lattice: Lattice, mesh: TriMesh, center: np.ndarray) -> None:
-        self.mesh = mesh
-        self.triangles = mesh.n_faces
-        self.basis: PointBasis = lattice.basis(mesh.vertices)
-        self.volume_op = VolumeOperator(mesh.faces, mesh.n_vertices)
-        self.center = center
-        self._last: tuple[bytes | None, float] = (None, 0.0)
-        self.rest_volume = self.volume(lattice.rest_nodes)
-
-    def volume(self, nodes: np.ndarray) -> float:
-        # One-entry memo: the stopping test and the result ask the full mesh for the
-        # volume of the same nodes, and on a big mesh that is the costliest call there is.
-        key = nodes.tobytes()
-        if self._last[0] != key:
-            self._last = (key, self.volume_op(self.basis.apply(nodes), self.center))
-        return self._last[1]
-
-    def volume_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
-        v, dv_dp = self.volume_op.value_and_gradient(self.basis.apply(nodes), self.center)
-        return v, self.basis.apply_transpose(dv_dp)
+#: the fold guard keeps det J above this fraction of min(1, target ratio) ...
+FOLD_MARGIN = 0.05
+#: ... with this weight: a sample point at det J = 0 costs FOLD_WEIGHT / samples (the spring
+#: energy of a bent model is 0.01 to 1)
+FOLD_WEIGHT = 100
 
 
 @dataclass(eq=False)
@@ -79,7 +64,7 @@ class EmbeddedSurface:
 
     lattice: Lattice
     levels: Sequence[TriMesh]
-    _cache: dict[int, _Level] = field(default_factory=dict, repr=False)
+    _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         if not self.levels:
@@ -104,11 +89,38 @@ class EmbeddedSurface:
         """Centre of the full mesh's bounding box."""
         return self.full.center
 
-    def level(self, k: int) -> _Level:
+    def level(self, k: int) -> Level:
         k = k % len(self.levels)
         if k not in self._cache:
-            self._cache[k] = _Level(self.lattice, self.levels[k], self.center)
+            self._cache[k] = Level(self.lattice, self.levels[k], self.center)
         return self._cache[k]
+
+    @cached_property
+    def bodies(self) -> Bodies:
+        """The full mesh's solid bodies (shells with their cavities)."""
+        return Bodies.of(self.full)
+
+    def constraints(self, k: int, goal: Goal) -> Constraints:
+        bodies = self.bodies if goal.preserve == "per-body" else None
+        return Constraints(self.level(k), goal, bodies, self.rest_volume, self.size)
+
+    @cached_property
+    def _probe(self) -> TriMesh:
+        """The coarsest level with at least 1000 triangles: where samples are taken."""
+        return next((m for m in self.levels if m.n_faces >= 1000), self.full)
+
+    @cached_property
+    def fold_check(self) -> FoldCheck:
+        """det J over the full mesh's vertices and points inside the model."""
+        return FoldCheck(self.lattice, self.full.vertices, interior_points(self._probe))
+
+    def fold_guard(self, margin: float) -> FoldGuard:
+        """The fold penalty at the probe level's vertices and interior points."""
+        key = ("guard", margin)
+        if key not in self._cache:
+            points = np.concatenate([self._probe.vertices, interior_points(self._probe, 1000)])
+            self._cache[key] = FoldGuard(self.lattice, points, margin, FOLD_WEIGHT / margin**3)
+        return self._cache[key]
 
     @cached_property
     def rest_volume(self) -> float:
@@ -130,17 +142,20 @@ def solve(
     fixed: np.ndarray,
     *,
     target_ratio: float = 1.0,
+    goal: Goal | None = None,
     options: SolverOptions | None = None,
     start_level: int | None = None,
 ) -> Generator[Progress, None, SolveResult]:
-    """Move the free nodes to the least spring energy at the target volume.
+    """Move the free nodes to the least spring energy that meets the goal.
 
     Parameters
     ----------
     surface : the embedded surface pyramid
     nodes : (n, 3) current node positions (moved nodes where the user put them)
-    fixed : (n,) bool, True for pinned and moved nodes
-    target_ratio : target volume over the rest volume (1 preserves it)
+    fixed : (n,) bool, True for pinned and moved nodes, or (n, 3) bool per coordinate
+    target_ratio : target volume over the rest volume, when no ``goal`` is given
+    goal : what to hold (:class:`isochor.core.constraints.Goal`); by default the volume at
+        ``target_ratio``, with the far-side anchor and the fold guard
     start_level : first pyramid level to solve on; by default the coarsest level with at
         least ``options.start_triangles`` triangles
 
@@ -151,21 +166,26 @@ def solve(
 
     Returns
     -------
-    SolveResult, with the volumes measured on the full-resolution mesh.
+    SolveResult, with the volumes, the folds and the centroid measured on the
+    full-resolution mesh.
     """
     opts = options or SolverOptions()
+    goal = goal or Goal(target_ratio=target_ratio)
     t0 = time.perf_counter()
     lattice = surface.lattice
     x = np.array(nodes, dtype=np.float64).reshape(lattice.n_nodes, 3)
-    fixed = np.asarray(fixed, dtype=bool).reshape(lattice.n_nodes)
-    free = ~fixed
+    fixed = np.asarray(fixed, dtype=bool)
+    fixed = np.array(np.broadcast_to(fixed.reshape(-1, 1) if fixed.ndim == 1 else fixed, x.shape))
     if not np.all(np.isfinite(x)):
         raise IsochorError("A lattice node has a non-finite position.")
-    if not (0.0 < target_ratio < np.inf):
-        raise IsochorError(f"The target volume ratio must be positive, got {target_ratio}.")
     v_ref = abs(surface.rest_volume)
     if v_ref <= 0:
         raise IsochorError("The model encloses no volume, so there is no volume to preserve.")
+    held, face = (
+        held_face(lattice, x, fixed) if goal.anchor == "far-side" else (np.zeros(len(x), bool), "")
+    )
+    fixed[held] = True
+    free = ~fixed
     size, center = surface.size, surface.center
     n_levels = len(surface.levels)
     if start_level is None:
@@ -174,45 +194,29 @@ def solve(
             n_levels - 1,
         )
     start_level = start_level % n_levels
+    springs = surface.springs
+    if goal.fold_guard:
+        guard = surface.fold_guard(FOLD_MARGIN * min(1.0, goal.target_ratio))
+
+        def energy_grad(x):
+            e, de = springs.energy_and_gradient(x)
+            p, dp = guard.value_and_gradient(x)
+            return e + p * size**2, de + dp * size**2
+    else:
+        energy_grad = springs.energy_and_gradient
 
     def result(x, stats, terminal, lam, sigma, converged, message=""):
-        full = surface.level(-1)
-        v_final = full.volume(x)
-        target = target_ratio * full.rest_volume
-        energy = surface.springs.energy(x) / size**2
-        if not (np.all(np.isfinite(x)) and np.isfinite(v_final) and np.isfinite(energy)):
-            # never a result made of overflowed numbers, whatever the caller does with it
-            raise IsochorError(
-                "The solve broke down: its numbers overflowed. The moves or the target "
-                "volume are too extreme for this lattice."
-            )
-        err = (v_final - target) / v_ref
-        ok = converged and abs(err) <= opts.tol_volume
-        if converged and not ok:
-            message = message or f"volume error {err:.2e} on the full mesh exceeds the tolerance"
-        return SolveResult(
-            frozen_copy(x),
-            tuple(stats),
-            terminal,
-            full.rest_volume,
-            target,
-            v_final,
-            err,
-            energy,
-            int(free.sum()),
-            time.perf_counter() - t0,
-            ok,
-            message,
-            lam,
-            sigma,
-        )
+        return outcome(
+            surface, goal, opts, x, stats, terminal, lam, sigma, converged, message, held, face,
+            int(free.any(axis=1).sum()), t0,
+        )  # fmt: skip
 
     if not free.any():
-        return result(x, [], -1, 0.0, 0.0, True, "no free node: nothing to solve")
+        return result(x, [], -1, np.zeros(1), 0.0, True, "no free node: nothing to solve")
 
-    first = surface.level(start_level)
-    v, dv = first.volume_and_gradient(x)
-    if np.max(np.abs(dv[free])) * size / v_ref < 1e-9:
+    first = surface.constraints(start_level, goal)
+    c, dc = first.values_and_jacobian(x)
+    if np.max(np.abs(dc[:, free])) * size < 1e-9:
         raise IsochorError(
             "The free nodes cannot change the model's volume: choose free nodes that influence "
             "the model, or pin fewer nodes."
@@ -223,25 +227,26 @@ def solve(
         frozen_copy(x),
         start_level,
         n_levels,
-        first.triangles,
+        first.level.triangles,
         0,
-        (v - target_ratio * first.rest_volume) / v_ref,
+        worst(c),
         opts.sigma0,
         0.0,
-        surface.springs.energy(x) / size**2,
+        energy_grad(x)[0] / size**2,
         time.perf_counter() - t0,
     )
 
-    lam, sigma = 0.0, opts.sigma0
-    warm = _warm_start(surface, x, free, target_ratio, v_ref, opts)
+    lam, sigma = np.zeros(first.count), opts.sigma0
+    warm = _warm_start(surface, goal, x, free, energy_grad, opts)
     x_prev = x
     if warm is not None:  # already at the volume: skip the coarse levels whose optimum differs
         start_level, lam = max(start_level, warm[0]), warm[1]
     elif opts.symmetry_break > 0:
         # An exactly symmetric start stays on the symmetric manifold under any gradient
         # method and can end on a saddle (the torus stretch does). A tiny fixed-seed
-        # nudge of the free nodes lets the minimiser leave it; results stay reproducible.
-        nudge = np.random.default_rng(0).standard_normal((int(free.sum()), 3))
+        # nudge of the free coordinates lets the minimiser leave it; results stay
+        # reproducible.
+        nudge = np.random.default_rng(0).standard_normal(int(free.sum()))
         x = x.copy()
         x[free] += opts.symmetry_break * size * nudge
     stats: list[LevelStats] = []
@@ -249,25 +254,16 @@ def solve(
     converged_level = False
     for k in range(start_level, n_levels):
         t_level = time.perf_counter()
-        level = surface.level(k)
-        problem = LevelProblem(
-            x,
-            free,
-            surface.springs.energy_and_gradient,
-            level.volume_and_gradient,
-            center,
-            size,
-            target_ratio * level.rest_volume,
-            v_ref,
-        )
+        cons = surface.constraints(k, goal)
+        problem = LevelProblem(x, free, energy_grad, cons.values_and_jacobian, center, size)
         run = augmented_lagrangian(problem, problem.to_y(x), lam, sigma, opts)
 
-        def progress(it, k=k, level=level, problem=problem):
+        def progress(it, k=k, cons=cons, problem=problem):
             return Progress(
                 frozen_copy(problem.to_nodes(it.y)),
                 k,
                 n_levels,
-                level.triangles,
+                cons.level.triangles,
                 it.step,
                 it.deviation,
                 it.sigma,
@@ -287,15 +283,14 @@ def solve(
         lam, sigma = al.lam, al.sigma
         change = float(np.max(np.abs(x - x_prev))) / size
         estimate = None
-        if k > 0:  # Eq 29 on the deviation, between this level and the next coarser one
-            prev = surface.level(k - 1)
-            g_prev = (prev.volume(x) - target_ratio * prev.rest_volume) / v_ref
-            ratio = level.triangles / prev.triangles
-            estimate = abs(g_prev - al.deviation) / max(ratio - 1.0, 1e-9)
+        if k > 0:  # Eq 29 on the constraints, between this level and the next coarser one
+            c_prev = surface.constraints(k - 1, goal).values(x)
+            ratio = cons.level.triangles / surface.level(k - 1).triangles
+            estimate = float(np.max(np.abs(c_prev - cons.values(x)))) / max(ratio - 1.0, 1e-9)
         stats.append(
             LevelStats(
                 k,
-                level.triangles,
+                cons.level.triangles,
                 al.steps,
                 time.perf_counter() - t_level,
                 change,
@@ -307,11 +302,11 @@ def solve(
             frozen_copy(x),
             k,
             n_levels,
-            level.triangles,
+            cons.level.triangles,
             al.steps,
             al.deviation,
             sigma,
-            lam,
+            float(lam[0]),
             al.energy,
             time.perf_counter() - t0,
             True,
@@ -331,43 +326,38 @@ def solve(
             converged_level = True
             break
         if change < opts.tol_nodes and estimate is not None and estimate <= opts.tol_volume:
-            full = surface.level(-1)
-            g_full = (full.volume(x) - target_ratio * full.rest_volume) / v_ref
-            if abs(g_full) <= opts.tol_volume:
+            c_full = surface.constraints(-1, goal).values(x)
+            if np.max(np.abs(c_full)) <= opts.tol_volume:
                 terminal, converged_level = k, True
                 break
         x_prev = x
     return result(x, stats, terminal, lam, sigma, converged_level)
 
 
-def _warm_start(surface, x, free, target_ratio, v_ref, opts) -> tuple[int, float] | None:
-    """Where to start when ``x`` already has the target volume (a re-solve, a small edit).
+def _warm_start(surface, goal, x, free, energy_grad, opts) -> tuple[int, np.ndarray] | None:
+    """Where to start when ``x`` already meets the goal (a re-solve, a small edit).
 
-    Returns the coarsest level whose own deviation at ``x`` agrees with the full mesh's to
-    within the tolerance, and the least-squares Lagrange multiplier there, or None when ``x``
-    is not at the target volume (then the solve starts at the coarsest level with lambda 0).
+    Returns the coarsest level whose own constraints at ``x`` agree with the full mesh's to
+    within the tolerance, and the least-squares Lagrange multipliers there, or None when
+    ``x`` does not meet the goal (then the solve starts at the coarsest level with lambda 0).
     A converged result restarted this way stops after one level and no steps, instead of
     re-deriving a different equilibrium from the coarse levels (the paper's Plate 6).
     """
-
-    def deviation(k):
-        lvl = surface.level(k)
-        return (lvl.volume(x) - target_ratio * lvl.rest_volume) / v_ref
-
-    g_full = deviation(-1)
-    if abs(g_full) > opts.tol_volume:
+    c_full = surface.constraints(-1, goal).values(x)
+    if np.max(np.abs(c_full)) > opts.tol_volume:
         return None
     n = len(surface.levels)
-    k = next(
-        k
-        for k in range(n)
-        if k == n - 1
-        or (
-            abs(deviation(k)) <= opts.volume_margin * opts.tol_volume
-            and abs(deviation(k) - g_full) <= opts.tol_volume
+
+    def agrees(k):
+        c = surface.constraints(k, goal).values(x)
+        return (
+            np.max(np.abs(c)) <= opts.volume_margin * opts.tol_volume
+            and np.max(np.abs(c - c_full)) <= opts.tol_volume
         )
-    )
-    _, dv = surface.level(k).volume_and_gradient(x)
-    _, de = surface.springs.energy_and_gradient(x)
-    de, dv = de[free].ravel() / surface.size, dv[free].ravel() * surface.size / v_ref
-    return k, float(de @ dv) / float(dv @ dv)
+
+    k = next(k for k in range(n) if k == n - 1 or agrees(k))
+    _, dc = surface.constraints(k, goal).values_and_jacobian(x)
+    _, de = energy_grad(x)
+    de, dc = de[free] / surface.size, dc[:, free] * surface.size
+    lam, *_ = np.linalg.lstsq(dc.T, de, rcond=None)
+    return k, lam

@@ -65,7 +65,7 @@ class Problem:
     scenario: Scenario
     surface: EmbeddedSurface
     nodes: np.ndarray  #: (n, 3) start positions: rest lattice with the moves applied
-    fixed: np.ndarray  #: (n,) bool: moved or pinned
+    fixed: np.ndarray  #: (n, 3) bool: the fixed coordinates (moved, pinned, axis-pinned)
     model: Model
     #: what the lattice's fit says (the part of the model outside an explicit frame)
     coverage: str | None = None
@@ -147,7 +147,7 @@ def build(
     else:
         lattice = Lattice(scenario.lattice_nodes, scenario.frame[0], scenario.frame[1])
     nodes = lattice.rest_nodes.copy()
-    fixed = np.zeros(lattice.n_nodes, dtype=bool)
+    fixed = np.zeros((lattice.n_nodes, 3), dtype=bool)
     for n, mv in enumerate(scenario.moves):
         r = lattice.index(*mv.node)
         nodes[r] = (nodes[r] + mv.by) if mv.by is not None else mv.to
@@ -160,6 +160,8 @@ def build(
             )
     for p in scenario.pins:
         fixed[lattice.index(*p)] = True
+    for p, axes in scenario.axis_pins:
+        fixed[lattice.index(*p), ["xyz".index(a) for a in axes]] = True
     surface = EmbeddedSurface(lattice, levels)
     fit = coverage(lattice, surface.full.vertices)
     return Problem(scenario, surface, nodes, fixed, model, fit)

@@ -8,6 +8,7 @@ level's end, and returns a :class:`SolveResult` with one :class:`LevelStats` per
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -51,6 +52,20 @@ class LevelStats:
 
 
 @dataclass(frozen=True)
+class BodyVolume:
+    """One solid body's volumes (a shell with the cavities inside it)."""
+
+    original: float
+    target: float
+    final: float
+
+    @property
+    def error(self) -> float:
+        """(final - target) / |target|"""
+        return (self.final - self.target) / abs(self.target)
+
+
+@dataclass(frozen=True)
 class SolveResult:
     nodes: np.ndarray  #: (n, 3) final node positions
     levels: tuple[LevelStats, ...]
@@ -64,5 +79,13 @@ class SolveResult:
     elapsed: float
     converged: bool
     message: str = ""
-    lam: float = 0.0
+    lam: float = 0.0  #: the first multiplier (the total volume's, or the first body's)
     sigma: float = 0.0
+    target_error: float = 0.0  #: (volume_final - volume_target) / |volume_target|
+    #: the worst constraint residual on the full mesh, in the units of ``tol_volume``
+    constraint_error: float = 0.0
+    held: tuple[int, ...] = ()  #: node rows the far-side anchor held
+    held_face: str = ""  #: which lattice face they are ("x min", ...), "" for none
+    folds: Any = None  #: :class:`isochor.core.folds.Folds` on the full mesh
+    bodies: tuple[BodyVolume, ...] = ()  #: per body, when there are several or per-body
+    centroid_shift: float | None = None  #: |C - C0| / size, with keep_centroid

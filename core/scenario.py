@@ -15,6 +15,17 @@ Version 1::
       "tolerance": {"volume": 0.0005, "nodes": 0.001}
     }
 
+Version 2 adds what a solve holds besides the volume (:class:`isochor.core.constraints.Goal`);
+a file that uses none of it is still written as version 1, and version 1 files read as
+before::
+
+      "pins": [[2, 0, 0], {"node": [0, 1, 1], "axes": "z"}],   a pin on some axes only
+      "preserve": "per-body",          or "total" (the default): each body keeps its volume
+      "keep_centroid": true,           keep the solid's centre of mass (default false)
+      "anchor": "none",                or "far-side" (the default): hold the lattice face
+                                       away from the edit while nothing else holds it
+      "fold_guard": false              (default true) penalise folding the model
+
 A moved node is fixed at its new place, a pinned node where it rests; all others are free.
 Relative model paths are relative to the scenario file. Unknown keys, wrong types,
 out-of-range nodes and unsupported versions raise :class:`IsochorError` naming the field.
@@ -33,14 +44,23 @@ from pathlib import Path
 from typing import Any
 
 from .atomic import atomic_write_text
+from .constraints import ANCHORS, PRESERVE, Goal, check_ratio
 from .defaults import LATTICE_NODES, PADDING, TOL_NODES, TOL_VOLUME
 from .errors import IsochorError
 from .formats import is_model
 from .lattice import MAX_NODES, MIN_NODES
-from .validate import MAX_COORDINATE, input_file, number
+from .validate import MAX_COORDINATE, input_file, number, show
 
 FORMAT = "isochor-scenario"
-VERSION = 1
+VERSION = 2
+VERSIONS = (1, 2)
+#: the keys version 2 added, with their defaults
+GOAL_DEFAULTS = {
+    "preserve": "total",
+    "keep_centroid": False,
+    "anchor": "far-side",
+    "fold_guard": True,
+}
 
 #: a scenario is a few kilobytes; anything larger than this is not one
 MAX_SCENARIO_BYTES = 16 * 2**20
@@ -67,10 +87,16 @@ class Scenario:
     padding: float = PADDING
     frame: tuple[tuple[float, ...], tuple[tuple[float, ...], ...]] | None = None
     moves: tuple[Move, ...] = ()
-    pins: tuple[tuple[int, int, int], ...] = ()
+    pins: tuple[tuple[int, int, int], ...] = ()  #: pinned on all three axes
+    #: pinned on some axes only: (node, axes) with axes a non-empty part of "xyz"
+    axis_pins: tuple[tuple[tuple[int, int, int], str], ...] = ()
     target_volume_ratio: float = 1.0
     tol_volume: float = TOL_VOLUME
     tol_nodes: float = TOL_NODES
+    preserve: str = "total"
+    keep_centroid: bool = False
+    anchor: str = "far-side"
+    fold_guard: bool = True
     base_dir: Path | None = field(default=None, compare=False)
     #: the file it was read from, for messages (None when built in memory)
     source: Path | None = field(default=None, compare=False)
@@ -90,14 +116,22 @@ class Scenario:
                 "pins",
                 "target_volume_ratio",
                 "tolerance",
+                *GOAL_DEFAULTS,
             },
             {"model"},
         )
         if doc.get("format", FORMAT) != FORMAT:
             raise IsochorError(f"format: expected {FORMAT!r}, got {doc.get('format')!r}")
         version = doc.get("version", VERSION)
-        if version != VERSION or isinstance(version, bool):
-            raise IsochorError(f"version: this Isochor reads version {VERSION}, got {version!r}")
+        if version not in VERSIONS or isinstance(version, bool):
+            raise IsochorError(
+                f"version: this Isochor reads versions 1 and {VERSION}, got {show(version)}"
+            )
+        if version == 1 and (set(doc) & set(GOAL_DEFAULTS)):
+            raise IsochorError(
+                f"{sorted(set(doc) & set(GOAL_DEFAULTS))[0]}: a version 2 key in a version 1 "
+                'scenario; set "version": 2'
+            )
         model = doc["model"]
         _check_keys(model, "model", None, set())
         if ("path" in model) == ("builtin" in model):
@@ -144,10 +178,13 @@ class Scenario:
                 moves.append(Move(node, by=_vec(mv["by"], f"{where}.by")))
             else:
                 moves.append(Move(node, to=_vec(mv["to"], f"{where}.to")))
-        pins = tuple(
-            _node(p, f"pins[{n}]", shape) for n, p in enumerate(_list(doc.get("pins", []), "pins"))
-        )
+        pins, axis_pins = _pins(_list(doc.get("pins", []), "pins"), shape, version)
         ratio = number(doc.get("target_volume_ratio", 1.0), "target_volume_ratio", RATIO_RANGE)
+        check_ratio(ratio, "target_volume_ratio")
+        preserve = _word(doc.get("preserve", "total"), "preserve", PRESERVE)
+        anchor = _word(doc.get("anchor", "far-side"), "anchor", ANCHORS)
+        keep_centroid = _flag(doc.get("keep_centroid", False), "keep_centroid")
+        fold_guard = _flag(doc.get("fold_guard", True), "fold_guard")
         tol = doc.get("tolerance", {})
         _check_keys(tol, "tolerance", {"volume", "nodes"}, set())
         tv = number(tol.get("volume", TOL_VOLUME), "tolerance.volume", TOLERANCE_RANGE)
@@ -159,11 +196,33 @@ class Scenario:
             frame,
             tuple(moves),
             pins,
+            axis_pins,
             ratio,
             tv,
             tn,
+            preserve,
+            keep_centroid,
+            anchor,
+            fold_guard,
             Path(base_dir) if base_dir is not None else None,
         )
+
+    @property
+    def goal(self) -> Goal:
+        """What the solve must hold."""
+        return Goal(
+            self.target_volume_ratio,
+            self.preserve,
+            self.keep_centroid,
+            self.anchor,
+            self.fold_guard,
+        )
+
+    @property
+    def version(self) -> int:
+        """1 unless a version 2 key differs from its default (or an axis pin is used)."""
+        changed = any(getattr(self, k) != v for k, v in GOAL_DEFAULTS.items())
+        return 2 if changed or self.axis_pins else 1
 
     def to_dict(self) -> dict[str, Any]:
         lattice: dict[str, Any] = {"nodes": list(self.lattice_nodes)}
@@ -182,16 +241,21 @@ class Scenario:
             else:
                 d["to"] = list(mv.to)
             moves.append(d)
-        return {
+        pins: list[Any] = [list(p) for p in self.pins]
+        pins += [{"node": list(p), "axes": axes} for p, axes in self.axis_pins]
+        doc = {
             "format": FORMAT,
-            "version": VERSION,
+            "version": self.version,
             "model": dict(self.model),
             "lattice": lattice,
             "moves": moves,
-            "pins": [list(p) for p in self.pins],
+            "pins": pins,
             "target_volume_ratio": self.target_volume_ratio,
             "tolerance": {"volume": self.tol_volume, "nodes": self.tol_nodes},
         }
+        if self.version > 1:
+            doc.update({k: getattr(self, k) for k in GOAL_DEFAULTS})
+        return doc
 
     # -- files --------------------------------------------------------------------------
     @classmethod
@@ -292,6 +356,46 @@ def _int_triple(obj: Any, where: str) -> tuple[int, int, int]:
     ):
         raise IsochorError(f"{where}: must be a list of three whole numbers")
     return tuple(obj)
+
+
+def _pins(items: list, shape: tuple[int, int, int], version: int) -> tuple[tuple, tuple]:
+    """The plain pins (all axes) and the axis pins of a ``pins`` list."""
+    pins, axis_pins, seen = [], [], set()
+    for n, p in enumerate(items):
+        where = f"pins[{n}]"
+        if isinstance(p, dict):
+            if version == 1:
+                raise IsochorError(f'{where}: a pin with axes needs "version": 2')
+            _check_keys(p, where, {"node", "axes"}, {"node", "axes"})
+            node = _node(p["node"], f"{where}.node", shape)
+            axes = p["axes"]
+            if not isinstance(axes, str) or not axes or set(axes) - set("xyz"):
+                raise IsochorError(f'{where}.axes: must be some of "xyz", like "z" or "xy"')
+            axes = "".join(a for a in "xyz" if a in axes)
+        else:
+            node, axes = _node(p, where, shape), "xyz"
+        if node in seen:
+            raise IsochorError(f"{where}: node {list(node)} is already pinned")
+        seen.add(node)
+        if axes == "xyz":
+            pins.append(node)
+        else:
+            axis_pins.append((node, axes))
+    return tuple(pins), tuple(axis_pins)
+
+
+def _word(obj: Any, where: str, words: tuple[str, ...]) -> str:
+    if obj not in words:
+        raise IsochorError(
+            f"{where}: must be one of {', '.join(map(repr, words))}, got {show(obj)}"
+        )
+    return obj
+
+
+def _flag(obj: Any, where: str) -> bool:
+    if not isinstance(obj, bool):
+        raise IsochorError(f"{where}: must be true or false, got {show(obj)}")
+    return obj
 
 
 def _node(obj: Any, where: str, shape: tuple[int, int, int]) -> tuple[int, int, int]:

@@ -1,10 +1,12 @@
 """Augmented Lagrangian over the free nodes (paper Eq 15-21, Fig 3).
 
-``La = E + sigma/2 g^2 - lambda g`` where ``g = (V(X) - V_target) / V_ref`` is the volume
-deviation made scale-free by one reference volume, and ``E`` is the spring energy of node
-positions measured in units of the object size. The optimisation variables are the free
-nodes in those units, ``y = (X_free - centre) / size``, so a model in millimetres and the
-same model in metres take the same steps with the same sigma.
+``La = E + sigma/2 |c|^2 - lambda . c`` where ``c`` are the constraints, each made
+scale-free (the volume deviation ``(V(X) - V_target) / V_ref``, one per body, the centroid:
+:mod:`isochor.core.constraints`), and ``E`` is the spring energy of node positions measured
+in units of the object size. The optimisation variables are the free node coordinates in
+those units, ``y = (X_free - centre) / size`` (a node pinned on some axes only is free on
+the others), so a model in millimetres and the same model in metres take the same steps
+with the same sigma.
 
 The inner unconstrained minimisation is limited-memory BFGS (two-loop recursion) with
 scipy's strong-Wolfe line search (:func:`scipy.optimize.line_search`) on the analytic
@@ -12,8 +14,8 @@ gradient. It is written as a generator rather than a call to ``scipy.optimize.mi
 because the editor must see every iterate as it comes and must be able to stop the work at
 once, which a blocking call cannot offer.
 
-Outer loop (Fig 3): ``lambda <- lambda - sigma g``; sigma doubles whenever ``|g|`` did not
-fall to half its previous value (Powell's rule), up to ``sigma_max``.
+Outer loop (Fig 3): ``lambda <- lambda - sigma c``; sigma doubles whenever the worst
+``|c_i|`` did not fall to half its previous value (Powell's rule), up to ``sigma_max``.
 """
 
 from __future__ import annotations
@@ -63,11 +65,11 @@ class Iterate:
 
     y: np.ndarray
     energy: float
-    deviation: float  #: g = (V - V_target) / V_ref
+    deviation: float  #: the worst constraint residual
     step: int  #: inner steps so far at this level
     outer: int
     sigma: float
-    lam: float
+    lam: float  #: the first multiplier (the total volume's, or the first body's)
 
 
 Objective = Callable[[np.ndarray], tuple[float, np.ndarray, tuple[float, float]]]
@@ -164,68 +166,69 @@ def _two_loop(g: np.ndarray, s_hist: deque, y_hist: deque) -> np.ndarray:
 
 
 class LevelProblem:
-    """Energy and volume deviation of one level as functions of the free nodes ``y``.
+    """Energy and constraints of one level as functions of the free coordinates ``y``.
 
     Parameters
     ----------
-    nodes : (n, 3) current node positions; the fixed ones stay as given
-    free : (n,) bool, the nodes the solver may move
+    nodes : (n, 3) current node positions; the fixed coordinates stay as given
+    free : (n, 3) bool, the coordinates the solver may move (an (n,) mask frees whole nodes)
     energy_grad : ``X -> (E, dE/dX)`` in world units
-    volume_grad : ``X -> (V, dV/dX)`` in world units
+    constraint_grad : ``X -> (c, dc/dX)``, ``(m,)`` and ``(m, n, 3)``, already scale-free
+        (see :mod:`isochor.core.constraints`)
     center, size : the normalisation of lengths
-    v_target, v_ref : target volume and the reference volume that scales the deviation
     """
 
-    def __init__(self, nodes, free, energy_grad, volume_grad, center, size, v_target, v_ref):
+    def __init__(self, nodes, free, energy_grad, constraint_grad, center, size):
         self.template = np.array(nodes, dtype=np.float64)
-        self.free = np.asarray(free, dtype=bool)
-        self.energy_grad, self.volume_grad = energy_grad, volume_grad
+        free = np.asarray(free, dtype=bool)
+        self.free = np.broadcast_to(free[:, None] if free.ndim == 1 else free, self.template.shape)
+        self.energy_grad, self.constraint_grad = energy_grad, constraint_grad
         self.center, self.size = np.asarray(center, dtype=np.float64), float(size)
-        self.v_target, self.v_ref = float(v_target), float(v_ref)
+        self._origin = np.broadcast_to(self.center, self.template.shape)[self.free]
 
     def to_y(self, nodes: np.ndarray) -> np.ndarray:
-        return ((nodes[self.free] - self.center) / self.size).ravel()
+        return (np.asarray(nodes, dtype=np.float64)[self.free] - self._origin) / self.size
 
     def to_nodes(self, y: np.ndarray) -> np.ndarray:
         out = self.template.copy()
-        out[self.free] = self.center + self.size * y.reshape(-1, 3)
+        out[self.free] = self._origin + self.size * y
         return out
 
-    def terms(self, y: np.ndarray) -> tuple[float, np.ndarray, float, np.ndarray]:
-        """Normalised energy, its gradient, deviation g and its gradient, all in ``y``."""
+    def terms(self, y: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+        """Normalised energy, its gradient, the constraints c (m,) and their gradients
+        (m, len(y)), all in ``y``."""
         x = self.to_nodes(y)
         e, de = self.energy_grad(x)
-        v, dv = self.volume_grad(x)
+        c, dc = self.constraint_grad(x)
         s = self.size
-        g = (v - self.v_target) / self.v_ref
-        return (
-            e / s**2,
-            (de[self.free] / s).ravel(),
-            g,
-            (dv[self.free] * (s / self.v_ref)).ravel(),
-        )
+        return e / s**2, de[self.free] / s, np.asarray(c, dtype=np.float64), dc[:, self.free] * s
 
-    def deviation(self, y: np.ndarray) -> float:
-        v, _ = self.volume_grad(self.to_nodes(y))
-        return (v - self.v_target) / self.v_ref
+    def deviation(self, y: np.ndarray) -> np.ndarray:
+        return self.constraint_grad(self.to_nodes(y))[0]
 
-    def lagrangian(self, lam: float, sigma: float) -> Objective:
-        """``y -> (La, dLa/dy, (E, g))`` for fixed multiplier and penalty (Eq 19)."""
+    def lagrangian(self, lam: np.ndarray, sigma: float) -> Objective:
+        """``y -> (La, dLa/dy, (E, worst c))`` for fixed multipliers and penalty (Eq 19)."""
 
         def fun(y: np.ndarray):
-            e, de, g, dg = self.terms(y)
-            la = e + 0.5 * sigma * g * g - lam * g
-            return la, de + (sigma * g - lam) * dg, (e, g)
+            e, de, c, dc = self.terms(y)
+            la = e + 0.5 * sigma * float(c @ c) - float(lam @ c)
+            return la, de + (sigma * c - lam) @ dc, (e, worst(c))
 
         return fun
+
+
+def worst(c: np.ndarray) -> float:
+    """The constraint residual of largest magnitude, with its sign."""
+    c = np.asarray(c, dtype=np.float64)
+    return float(c[np.argmax(np.abs(c))]) if c.size else 0.0
 
 
 @dataclass(frozen=True)
 class ALResult:
     y: np.ndarray
-    lam: float
+    lam: np.ndarray  #: (m,) multipliers
     sigma: float
-    deviation: float
+    deviation: float  #: the worst constraint residual
     energy: float
     steps: int
     outer: int
@@ -233,12 +236,18 @@ class ALResult:
 
 
 def augmented_lagrangian(
-    problem: LevelProblem, y0: np.ndarray, lam: float, sigma: float, options: SolverOptions
+    problem: LevelProblem,
+    y0: np.ndarray,
+    lam: np.ndarray,
+    sigma: float,
+    options: SolverOptions,
 ) -> Generator[Iterate, None, ALResult]:
-    """Fig 3: minimise La, update lambda, raise sigma when |g| does not halve; repeat."""
+    """Fig 3: minimise La, update lambda, raise sigma when the worst |c| does not halve;
+    repeat."""
     tol = options.volume_margin * options.tol_volume
     y = np.array(y0, dtype=np.float64)
-    g_prev = abs(problem.deviation(y))
+    lam = np.array(lam, dtype=np.float64)
+    g_prev = float(np.max(np.abs(problem.deviation(y))))
     steps = 0
     energy = g = float("nan")
     for outer in range(options.max_outer):
@@ -254,14 +263,15 @@ def augmented_lagrangian(
             nonlocal steps
             steps += 1
             y_k, (energy_k, g_k) = record
-            return Iterate(y_k, energy_k, g_k, steps, outer, sigma, lam)
+            return Iterate(y_k, energy_k, g_k, steps, outer, sigma, float(lam[0]))
 
         y, _, _ = yield from relay(inner, iterate)
-        energy, _, g, _ = problem.terms(y)
-        if abs(g) <= tol:
-            return ALResult(y, lam, sigma, g, energy, steps, outer + 1, True)
-        lam -= sigma * g
-        if abs(g) > 0.5 * g_prev:
+        energy, _, c, _ = problem.terms(y)
+        g = float(np.max(np.abs(c)))
+        if g <= tol:
+            return ALResult(y, lam, sigma, worst(c), energy, steps, outer + 1, True)
+        lam = lam - sigma * c
+        if g > 0.5 * g_prev:
             sigma = min(2.0 * sigma, options.sigma_max)
-        g_prev = abs(g)
-    return ALResult(y, lam, sigma, g, energy, steps, options.max_outer, False)
+        g_prev = g
+    return ALResult(y, lam, sigma, worst(c), energy, steps, options.max_outer, False)

@@ -256,3 +256,45 @@ class VolumeOperator:
                 gz += block @ cz
         volume = float(np.einsum("ij,ij->", vt, grad)) / 3.0
         return volume, grad.T
+
+
+class MomentOperator:
+    """First moment of the solid, ``M = integral of x dV``, and its gradient, for a fixed
+    face list (the centre of mass is ``M / V``).
+
+    The divergence-theorem sum again: the tetrahedron a face ``(a, b, c)`` spans with the
+    origin has volume ``det / 6`` (``det = a . (b x c)``) and centroid ``(a + b + c) / 4``,
+    so ``M = sum det (a + b + c) / 24``, exact for the triangle mesh. Its derivative with
+    respect to corner ``a`` is ``(s_i (b x c) + det e_i) / 24`` for component ``i``, with
+    ``s = a + b + c`` (and cyclically for ``b`` and ``c``). The per-corner terms are
+    gathered onto the vertices by one sparse matrix built once.
+    """
+
+    def __init__(self, faces: np.ndarray, n_vertices: int) -> None:
+        self.faces = np.ascontiguousarray(faces, dtype=np.int64)
+        f = len(self.faces)
+        self._gather = sp.csr_matrix(
+            (np.ones(3 * f), (self.faces.T.ravel(), np.arange(3 * f))),
+            shape=(int(n_vertices), 3 * f),
+        )
+
+    def value_and_gradient(
+        self, vertices: np.ndarray, center: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``M`` (3,) about ``center`` and its gradient ``(3, m, 3)``: ``[i, vertex, axis]``."""
+        v = np.asarray(vertices, dtype=np.float64)
+        if center is not None:
+            v = v - np.asarray(center, dtype=np.float64)
+        a, b, c = (v[self.faces[:, q]] for q in range(3))
+        # d det / d corner, corner by corner (a, b, c), stacked corner-major like the gather
+        w = np.concatenate([np.cross(b, c), np.cross(c, a), np.cross(a, b)])
+        det = np.einsum("ij,ij->i", a, w[: len(a)])
+        s = a + b + c
+        moment = det @ s / 24.0
+        s3, det3 = np.tile(s, (3, 1)), np.tile(det, 3)
+        grad = np.empty((3, len(v), 3))
+        for i in range(3):
+            term = s3[:, i : i + 1] * w
+            term[:, i] += det3
+            grad[i] = self._gather @ term / 24.0
+        return moment, grad

@@ -5,6 +5,7 @@ import inspect
 import numpy as np
 import pytest
 
+from isochor.core.constraints import Goal
 from isochor.core.errors import IsochorError
 from isochor.core.examples import example_scenario
 from isochor.core.lattice import Lattice
@@ -40,24 +41,29 @@ def _layer(lattice, axis, value):
     return np.array([lattice.ijk(r)[axis] == value for r in range(lattice.n_nodes)])
 
 
-def test_augmented_lagrangian_gradient_matches_central_differences():
+@pytest.mark.parametrize(
+    "goal", [Goal(0.9), Goal(1.1, keep_centroid=True)], ids=["volume", "centroid"]
+)
+def test_augmented_lagrangian_gradient_matches_central_differences(goal):
     rng = np.random.default_rng(8)
     levels = torus_levels(3)
     lat = Lattice.around(levels[-1].vertices, (3, 3, 3))
     surface = EmbeddedSurface(lat, levels)
-    free = rng.uniform(size=lat.n_nodes) < 0.5
+    free = rng.uniform(size=(lat.n_nodes, 3)) < 0.5  # some nodes free on some axes only
     nodes = lat.rest_nodes + rng.normal(scale=0.1, size=(lat.n_nodes, 3))
+    cons = surface.constraints(-1, goal)
     prob = LevelProblem(
         nodes,
         free,
         surface.springs.energy_and_gradient,
-        surface.level(-1).volume_and_gradient,
+        cons.values_and_jacobian,
         surface.center,
         surface.size,
-        0.9 * surface.rest_volume,
-        surface.rest_volume,
     )
-    fun = prob.lagrangian(lam=0.7, sigma=30.0)
+    assert prob.to_y(nodes).shape == (free.sum(),)
+    np.testing.assert_allclose(prob.to_nodes(prob.to_y(nodes)), nodes, rtol=1e-15, atol=1e-15)
+    assert np.array_equal(prob.to_nodes(prob.to_y(nodes))[~free], nodes[~free])  # exact
+    fun = prob.lagrangian(lam=np.linspace(0.7, -0.3, cons.count), sigma=30.0)
     y = prob.to_y(nodes)
     _, grad, _ = fun(y)
     num = central_gradient(lambda z: fun(z)[0], y)
@@ -116,7 +122,7 @@ def test_torus_compression_levels_look_like_table_2(compression):
 def _constrained_energy_check(problem, result, rng):
     """Random neighbours of the result with the same volume on the terminal level (the mesh
     the solve minimised on) have more spring energy."""
-    surface, free = problem.surface, ~problem.fixed
+    surface, free = problem.surface, ~problem.fixed.any(axis=1)
     level = surface.level(result.terminal_level)
     e0 = surface.springs.energy(result.nodes)
     target = level.volume(result.nodes)
@@ -142,7 +148,7 @@ def test_torus_stretch_centre_layer_contracts_sideways():
     assert result.converged and abs(result.rel_volume_error) <= 5e-4
     lat = problem.surface.lattice
     mid = _layer(lat, 0, 2)
-    assert np.array_equal(mid, ~problem.fixed)
+    assert np.array_equal(mid, ~problem.fixed.any(axis=1))
 
     # the cross-section spanned by the 2x2 centre nodes (y-z plane) shrinks: the nodes move
     # across towards the diagonal sides, as in the paper's Plate 2. (The exactly symmetric

@@ -1,0 +1,187 @@
+"""Folds: det J at vertices and interior points, the fold guard's penalty and gradient."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from isochor.core.bodies import winding_numbers
+from isochor.core.folds import (
+    FoldCheck,
+    FoldGuard,
+    Folds,
+    _winding_numbers,
+    interior_points,
+    jacobian_determinants,
+)
+from isochor.core.lattice import Lattice
+from isochor.core.mesh import TriMesh
+from tests.numdiff import central_gradient
+
+
+def _sphere(radius: float = 1.0, subdivisions: int = 3) -> TriMesh:
+    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    return TriMesh(m.vertices, m.faces)
+
+
+def _rotated_lattice(shape: tuple[int, int, int]) -> Lattice:
+    """A lattice whose frame is rotated and sheared (not axis-aligned)."""
+    angle = 0.4
+    c, s = np.cos(angle), np.sin(angle)
+    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    tilt = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(0.3), -np.sin(0.3)], [0.0, np.sin(0.3), 1.0]])
+    axes = np.diag([2.0, 1.5, 1.0]) @ (rotation @ tilt).T + [[0, 0, 0], [0.3, 0, 0], [0, 0.2, 0]]
+    return Lattice(shape, (-0.5, 0.2, -0.3), axes)
+
+
+def _inside_frame(lattice: Lattice, count: int, seed: int) -> np.ndarray:
+    uvw = np.random.default_rng(seed).uniform(0.02, 0.98, size=(count, 3))
+    return lattice.origin + uvw @ lattice.axes
+
+
+def test_determinants_match_lattice_jacobian_on_a_sheared_frame():
+    rng = np.random.default_rng(0)
+    lattice = _rotated_lattice((3, 4, 2))
+    points = _inside_frame(lattice, 300, seed=1)
+    nodes = lattice.rest_nodes + rng.normal(scale=0.4, size=(lattice.n_nodes, 3))
+    expected = np.linalg.det(lattice.jacobian(points, nodes))
+    guard = FoldGuard(lattice, points, margin=0.5, weight=1.0)
+    assert np.allclose(guard.determinants(nodes), expected, rtol=1e-10, atol=1e-12)
+    check = FoldCheck(lattice, points[:200], points[200:])
+    at_vertices, inside = check.determinants(nodes)
+    assert np.allclose(np.concatenate([at_vertices, inside]), expected, rtol=1e-10, atol=1e-12)
+    assert np.allclose(jacobian_determinants(lattice, points, nodes), expected, rtol=1e-10)
+
+
+@pytest.mark.parametrize("shape", [(2, 2, 2), (5, 3, 2), (10, 10, 10)])
+def test_blocked_determinants_match_across_blocks_and_shapes(shape):
+    rng = np.random.default_rng(2)
+    lattice = _rotated_lattice(shape)
+    points = _inside_frame(lattice, 9000, seed=3)  # more than one block
+    nodes = lattice.rest_nodes + rng.normal(scale=0.2, size=(lattice.n_nodes, 3))
+    expected = np.linalg.det(lattice.jacobian(points, nodes))
+    assert np.allclose(jacobian_determinants(lattice, points, nodes), expected, atol=1e-10)
+
+
+def test_guard_gradient_matches_central_differences():
+    rng = np.random.default_rng(5)
+    lattice = _rotated_lattice((3, 4, 2))
+    points = _inside_frame(lattice, 60, seed=6)
+    guard = FoldGuard(lattice, points, margin=0.8, weight=2.5)
+    nodes = lattice.rest_nodes + rng.normal(scale=0.35, size=(lattice.n_nodes, 3))
+    below = np.count_nonzero(guard.determinants(nodes) < guard.margin)
+    assert 5 <= below < len(points)  # several points are penalised, not all
+    value, grad = guard.value_and_gradient(nodes)
+    assert value > 0 and grad.shape == (lattice.n_nodes, 3)
+    numeric = central_gradient(lambda x: guard.value_and_gradient(x)[0], nodes, h=1e-6)
+    assert np.linalg.norm(grad - numeric) < 1e-5 * np.linalg.norm(numeric)
+
+    dets = guard.determinants(nodes)
+    by_hand = 2.5 / len(points) * np.sum(np.maximum(0.8 - dets, 0) ** 3)
+    assert value == pytest.approx(by_hand, rel=1e-12)
+
+
+def test_guard_is_zero_at_rest():
+    lattice = _rotated_lattice((3, 4, 2))
+    points = _inside_frame(lattice, 50, seed=7)
+    guard = FoldGuard(lattice, points, margin=0.9, weight=10.0)
+    assert np.allclose(guard.determinants(lattice.rest_nodes), 1.0, atol=1e-12)
+    value, grad = guard.value_and_gradient(lattice.rest_nodes)
+    assert value == 0.0
+    assert grad.shape == (lattice.n_nodes, 3) and not grad.any()
+    empty = FoldGuard(lattice, np.zeros((0, 3)), margin=0.9, weight=1.0)
+    assert empty.value_and_gradient(lattice.rest_nodes)[0] == 0.0
+
+
+def test_rest_lattice_is_not_folded():
+    mesh = _sphere()
+    lattice = Lattice.around(mesh.vertices, (4, 4, 4))
+    check = FoldCheck(lattice, mesh.vertices, interior_points(mesh, 300))
+    folds = check.measure(lattice.rest_nodes)
+    assert isinstance(folds, Folds)
+    assert folds.fraction == 0.0 and not folds.folded
+    assert folds.vertex_fraction == 0.0 and folds.interior_fraction == 0.0
+    assert folds.min_det == pytest.approx(1.0, abs=1e-12)
+    assert folds.vertices.shape == (mesh.n_vertices,) and not folds.vertices.any()
+    assert not folds.vertices.flags.writeable
+
+
+def test_top_layer_below_bottom_folds_the_upper_part():
+    mesh = _sphere()
+    lattice = Lattice.around(mesh.vertices, (3, 3, 3))
+    nodes = lattice.rest_nodes.copy()
+    ijk = np.array([lattice.ijk(i) for i in range(lattice.n_nodes)])
+    top, bottom = ijk[:, 2] == 2, ijk[:, 2] == 0
+    nodes[top, 2] = nodes[bottom, 2].min() - 0.5 * lattice.axes[2, 2]
+    interior = interior_points(mesh, 400)
+    check = FoldCheck(lattice, mesh.vertices, interior)
+    folds = check.measure(nodes)
+    assert folds.folded and folds.fraction > 0.2
+    assert 0 < folds.vertex_fraction < 1 and 0 < folds.interior_fraction < 1
+    expected = np.linalg.det(lattice.jacobian(mesh.vertices, nodes))
+    clear = np.abs(expected) > 1e-9
+    assert np.array_equal(folds.vertices[clear], expected[clear] <= 0)
+    assert folds.vertices[mesh.vertices[:, 2] > 0.9].all()  # the top is inside out
+    assert not folds.vertices[mesh.vertices[:, 2] < -0.9].any()  # the bottom is not
+    inside_dets = np.linalg.det(lattice.jacobian(interior, nodes))
+    assert folds.min_det == pytest.approx(min(expected.min(), inside_dets.min()), rel=1e-9)
+    n_folded = np.count_nonzero(expected <= 0) + np.count_nonzero(inside_dets <= 0)
+    assert folds.fraction == pytest.approx(n_folded / (len(expected) + len(interior)))
+
+
+def test_mirror_turns_everything_inside_out():
+    mesh = _sphere()
+    lattice = Lattice.around(mesh.vertices, (4, 3, 3))
+    normal = np.array([1.0, 2.0, -0.5]) / np.linalg.norm([1.0, 2.0, -0.5])
+    rest = lattice.rest_nodes
+    mirrored = rest - 2 * ((rest - (0.1, 0.2, 0.3)) @ normal)[:, None] * normal
+    folds = FoldCheck(lattice, mesh.vertices, interior_points(mesh, 300)).measure(mirrored)
+    assert folds.fraction == 1.0 and folds.vertex_fraction == 1.0
+    assert folds.interior_fraction == 1.0 and folds.vertices.all()
+    assert folds.min_det == pytest.approx(-1.0, abs=1e-9)
+
+
+def test_no_samples_measure_nothing():
+    lattice = Lattice((2, 2, 2), (0, 0, 0), np.eye(3))
+    folds = FoldCheck(lattice, np.zeros((0, 3)), np.zeros((0, 3))).measure(lattice.rest_nodes)
+    assert folds.fraction == 0.0 and not folds.folded and folds.min_det == np.inf
+
+
+def test_interior_points_of_a_sphere():
+    radius = 2.0
+    mesh = _sphere(radius)
+    points = interior_points(mesh, count=1000)
+    assert points.ndim == 2 and points.shape[1] == 3
+    assert 500 <= len(points) <= 2000
+    assert np.all(np.linalg.norm(points, axis=1) < radius)
+    assert np.array_equal(points, interior_points(mesh, count=1000))  # deterministic
+
+
+def test_interior_points_of_a_torus_avoid_the_hole():
+    major, minor = 1.0, 0.35
+    t = trimesh.creation.torus(major_radius=major, minor_radius=minor)
+    mesh = TriMesh(t.vertices, t.faces)
+    points = interior_points(mesh, count=1500)
+    assert len(points) > 50
+    ring = np.linalg.norm(points[:, :2], axis=1)
+    assert np.all(ring > major - minor)  # none in the hole
+    tube = np.hypot(ring - major, points[:, 2])
+    assert np.all(tube < 1.01 * minor)  # in the tube (the mesh's polygon, not the exact circle)
+
+
+def test_interior_points_budget_and_degenerate_meshes():
+    mesh = _sphere(subdivisions=3)  # 1280 faces
+    few = interior_points(mesh, count=2000, budget=100 * mesh.n_faces)
+    assert 0 < len(few) <= 100
+    assert interior_points(mesh, count=2000, budget=mesh.n_faces - 1).shape == (0, 3)
+    flat = TriMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    assert interior_points(flat).shape == (0, 3)
+    assert interior_points(TriMesh(np.zeros((0, 3)), np.zeros((0, 3)))).shape == (0, 3)
+
+
+def test_blocked_winding_numbers_match_bodies():
+    mesh = _sphere(subdivisions=2)
+    points = np.random.default_rng(8).uniform(-1.5, 1.5, size=(200, 3))
+    triangles = mesh.vertices[mesh.faces]
+    assert np.allclose(_winding_numbers(points, triangles), winding_numbers(points, triangles))
