@@ -194,6 +194,33 @@ def _parser() -> argparse.ArgumentParser:
     )
     solve.add_argument("--report", type=Path, metavar="JSON", help="the report (JSON)")
     solve.add_argument("--quiet", "-q", action="store_true", help="no per-level table")
+    goal = solve.add_argument_group("what the solve holds (each overrides the scenario's)")
+    goal.add_argument(
+        "--target", type=float, metavar="RATIO", help="the volume to reach, / the model's"
+    )
+    goal.add_argument(
+        "--preserve",
+        choices=("total", "per-body"),
+        help="one total volume, or each closed body's own",
+    )
+    goal.add_argument(
+        "--keep-centroid",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="keep the solid's centre of mass where it was",
+    )
+    goal.add_argument(
+        "--anchor",
+        choices=("far-side", "none"),
+        help="far-side: while too little is fixed, hold the lattice face away from the "
+        "moved nodes; none: let the lattice drift (the paper)",
+    )
+    goal.add_argument(
+        "--fold-guard",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="penalise folding the model inside out (on by default)",
+    )
     solve.set_defaults(run=_solve)
 
     examples = sub.add_parser("examples", help="list the built-in examples")
@@ -240,6 +267,7 @@ def _solve(args: argparse.Namespace) -> int:
     else:
         scenario, source = Scenario.read(args.scenario), str(args.scenario)
         inputs = [(args.scenario, "the scenario")]
+    scenario = _with_goal(scenario, args)
     if "path" in scenario.model:
         inputs.append((scenario.model_path(), "the model"))
     # every output is checked against the inputs and the others before any work
@@ -282,9 +310,24 @@ def _solve(args: argparse.Namespace) -> int:
         print(f"isochor: note: {note}", file=sys.stderr)
     _summary(result, args, console)
     if not result.converged:
-        print(f"isochor: the solve did not converge: {result.message}", file=sys.stderr)
+        folded = result.folds is not None and result.folds.folded
+        what = "the result is not a success" if folded else "the solve did not converge"
+        print(f"isochor: {what}: {result.message}", file=sys.stderr)
         return EXIT_NOT_CONVERGED
     return EXIT_OK
+
+
+def _with_goal(scenario, args: argparse.Namespace):
+    """The scenario with the goal options of the command line."""
+    from ..core.constraints import check_ratio
+
+    changes: dict[str, Any] = {}
+    if args.target is not None:
+        changes["target_volume_ratio"] = check_ratio(args.target, "--target")
+    for key in ("preserve", "keep_centroid", "anchor", "fold_guard"):
+        if getattr(args, key) is not None:
+            changes[key] = getattr(args, key)
+    return scenario.with_(**changes) if changes else scenario
 
 
 def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from .problem import Problem
 from .records import SolveResult
 from .repair import count_bodies
@@ -24,6 +26,7 @@ def make_report(
     time_s : the whole run's seconds (load and solve); the solve's own by default
     """
     sc = problem.scenario
+    lattice = problem.surface.lattice
     return {
         "scenario": source,
         "model": dict(sc.model),
@@ -35,7 +38,22 @@ def make_report(
         "volume_target": result.volume_target,
         "volume_final": result.volume_final,
         "relative_volume_error": result.rel_volume_error,
+        "target_error": result.target_error,
         "target_volume_ratio": sc.target_volume_ratio,
+        "preserve": sc.preserve,
+        "keep_centroid": sc.keep_centroid,
+        "anchor": sc.anchor,
+        "fold_guard": sc.fold_guard,
+        "held": {
+            "face": result.held_face or None,
+            "nodes": [list(lattice.ijk(r)) for r in result.held],
+        },
+        "folded": _folds(result.folds),
+        "body_volumes": [
+            {"original": b.original, "target": b.target, "final": b.final, "error": b.error}
+            for b in result.bodies
+        ],
+        "centroid_shift": result.centroid_shift,
         "converged": bool(result.converged),
         "message": result.message,
         "terminal_level": result.terminal_level,
@@ -57,4 +75,17 @@ def make_report(
         "solve_time_s": result.elapsed,
         "time_s": result.elapsed if time_s is None else time_s,
         "warnings": list(problem.warnings),
+    }
+
+
+def _folds(folds: Any) -> dict[str, float] | None:
+    """The folded fractions (0 when nothing is turned inside out)."""
+    if folds is None:
+        return None
+    low = folds.min_det if np.isfinite(folds.min_det) else None
+    return {
+        "fraction": folds.fraction,
+        "vertex_fraction": folds.vertex_fraction,
+        "interior_fraction": folds.interior_fraction,
+        "min_det_j": low,
     }
