@@ -46,6 +46,10 @@ class SolverOptions:
     gtol: float = 1e-5
     max_inner: int = 500  #: inner steps per outer iteration at most
     max_outer: int = 60  #: Lagrange-multiplier updates per level at most
+    #: inner steps per level at most, over all outer iterations: an edit that cannot be
+    #: met (a node dragged a thousand sizes away against the fold guard) stops as not
+    #: converged in seconds instead of spending max_outer * max_inner steps
+    max_steps: int = 5000
     memory: int = 12  #: L-BFGS correction pairs
     volume_margin: float = 0.5  #: a level is solved at ``volume_margin * tol_volume``
     symmetry_break: float = 1e-4  #: size of the start nudge of free nodes, / object size
@@ -270,8 +274,10 @@ def augmented_lagrangian(
         g = float(np.max(np.abs(c)))
         if g <= tol:
             return ALResult(y, lam, sigma, worst(c), energy, steps, outer + 1, True)
+        if steps >= options.max_steps:
+            break
         lam = lam - sigma * c
         if g > 0.5 * g_prev:
             sigma = min(2.0 * sigma, options.sigma_max)
         g_prev = g
-    return ALResult(y, lam, sigma, worst(c), energy, steps, options.max_outer, False)
+    return ALResult(y, lam, sigma, worst(c), energy, steps, outer + 1, False)
