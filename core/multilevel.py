@@ -110,15 +110,20 @@ class EmbeddedSurface:
         return next((m for m in self.levels if m.n_faces >= 1000), self.full)
 
     @cached_property
+    def interior(self) -> np.ndarray:
+        """About 2000 grid points inside the model (found on the probe level)."""
+        return interior_points(self._probe)
+
+    @cached_property
     def fold_check(self) -> FoldCheck:
         """det J over the full mesh's vertices and points inside the model."""
-        return FoldCheck(self.lattice, self.full.vertices, interior_points(self._probe))
+        return FoldCheck(self.lattice, self.full.vertices, self.interior)
 
     def fold_guard(self, margin: float) -> FoldGuard:
         """The fold penalty at the probe level's vertices and interior points."""
         key = ("guard", margin)
         if key not in self._cache:
-            points = np.concatenate([self._probe.vertices, interior_points(self._probe, 1000)])
+            points = np.concatenate([self._probe.vertices, self.interior])
             self._cache[key] = FoldGuard(self.lattice, points, margin, FOLD_WEIGHT / margin**3)
         return self._cache[key]
 
