@@ -197,3 +197,71 @@ def test_the_readme_scripting_example_runs(tmp_path, monkeypatch):
     exec(compile(code, "README.md", "exec"), namespace)  # our own README
     assert namespace["result"].converged
     assert (tmp_path / "squashed.obj").exists()
+
+
+def two_balls() -> trimesh.Trimesh:
+    a = trimesh.creation.icosphere(3, radius=1.0)
+    b = trimesh.creation.icosphere(3, radius=0.5)
+    b.apply_translation([1.7, 0.0, 0.2])
+    return trimesh.util.concatenate([a, b])
+
+
+def test_deform_keeps_each_body_the_centroid_and_axis_pins():
+    mesh = two_balls()
+    rest = sorted(p.volume for p in mesh.split(only_watertight=False))
+    bottom = [(i, j, 0) for i in range(3) for j in range(3)]
+    top = {(i, j, 2): (0.0, 0.0, -0.5) for i in range(3) for j in range(3)}
+    out = isochor.deform(mesh, (3, 3, 3), moves=top, pins=bottom, preserve="per-body")
+    assert out.converged, out.report["message"]
+    final = sorted(p.volume for p in out.mesh.split(only_watertight=False))
+    np.testing.assert_allclose(final, rest, rtol=5e-4)  # measured by trimesh
+    assert len(out.report["body_volumes"]) == 2 and out.report["preserve"] == "per-body"
+    # the same squash keeping only the total leaves the bodies off their volumes
+    total = isochor.deform(mesh, (3, 3, 3), moves=top, pins=bottom)
+    final = sorted(p.volume for p in total.mesh.split(only_watertight=False))
+    assert max(abs(f / r - 1) for f, r in zip(final, rest)) > 5e-3
+
+    ball_ = trimesh.creation.icosphere(3)
+    moves = {(2, 1, 1): (0.4, 0.3, 0.0)}
+    kept = isochor.deform(ball_, (3, 3, 3), moves=moves, keep_centroid=True)
+    assert kept.converged and kept.report["centroid_shift"] <= 1e-4
+    shift = np.linalg.norm(kept.mesh.center_mass - ball_.center_mass) / 2.0
+    assert shift <= 1e-4
+
+    pins = [{"node": (0, 1, 1), "axes": "z"}, *[(0, j, k) for j in (0, 2) for k in (0, 2)]]
+    axis = isochor.deform(ball_, (3, 3, 3), moves=moves, pins=pins)
+    assert axis.converged
+    lattice = _lattice_of(ball_)
+    node = np.array(axis.report["nodes"])[lattice.index(0, 1, 1)]
+    rest_node = lattice.rest_nodes[lattice.index(0, 1, 1)]
+    assert node[2] == rest_node[2] and np.linalg.norm(node[:2] - rest_node[:2]) > 1e-4
+
+
+def _lattice_of(mesh) -> isochor.core.lattice.Lattice:
+    """The lattice deform fits around a mesh (the default padding)."""
+    return isochor.core.lattice.Lattice.around(mesh.vertices, (3, 3, 3), 0.05)
+
+
+def test_a_session_saves_version_2_only_when_it_uses_it(tmp_path):
+    path = tmp_path / "ball.obj"
+    save_mesh(path, icosphere(3))
+    session = isochor.load(path, lattice=(3, 3, 3))
+    session.move((2, 1, 1), by=(0.3, 0.0, 0.0))
+    session.save(tmp_path / "plain.json")
+    assert json.loads((tmp_path / "plain.json").read_text())["version"] == 1
+    session.pin((0, 1, 1), axes="z")
+    session.keep_centroid = True
+    session.anchor = "none"
+    session.save(tmp_path / "v2.json")
+    doc = json.loads((tmp_path / "v2.json").read_text())
+    assert doc["version"] == 2 and doc["keep_centroid"] is True and doc["anchor"] == "none"
+    assert {"node": [0, 1, 1], "axes": "z"} in doc["pins"]
+    again = isochor.load(tmp_path / "v2.json")
+    assert again.goal == session.goal
+    assert again.fixed[again.lattice.index(0, 1, 1)].tolist() == [False, False, True]
+    assert again.solve().converged
+    with pytest.raises(isochor.IsochorError, match="axes"):
+        session.pin((0, 0, 0), axes="w")
+    session.target = 0.01
+    with pytest.raises(isochor.IsochorError, match=r"0\.05\.\.20"):
+        session.solve()
