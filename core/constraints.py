@@ -69,7 +69,7 @@ class Goal:
     fold_guard: bool = True
 
     def __post_init__(self) -> None:
-        check_ratio(self.target_ratio)
+        object.__setattr__(self, "target_ratio", check_ratio(self.target_ratio))
         if self.preserve not in PRESERVE:
             raise IsochorError(f"preserve: must be one of {', '.join(PRESERVE)}")
         if self.anchor not in ANCHORS:
@@ -79,12 +79,16 @@ class Goal:
 def check_ratio(ratio: float, where: str = "target volume ratio") -> float:
     """``ratio`` if the method can reach it, else an error that says what it can reach."""
     lo, hi = RATIO_RANGE
-    if not (isinstance(ratio, (int, float)) and lo <= ratio <= hi):
+    try:
+        value = float(ratio)
+    except (TypeError, ValueError):
+        value = float("nan")
+    if isinstance(ratio, bool) or not lo <= value <= hi:
         raise IsochorError(
             f"{where} {ratio!r} is outside {lo:g}..{hi:g}: a lattice deformation cannot "
             "squash or inflate a model further without turning it inside out"
         )
-    return float(ratio)
+    return value
 
 
 @dataclass(frozen=True)
@@ -135,6 +139,7 @@ class Level:
         self.basis: PointBasis = lattice.basis(mesh.vertices)
         self.volume_op = VolumeOperator(mesh.faces, mesh.n_vertices)
         self._last: tuple[bytes | None, float] = (None, 0.0)
+        self._parts: tuple[list[_Part], np.ndarray] | None = None
         self.rest_volume = self.volume(lattice.rest_nodes)
 
     def volume(self, nodes: np.ndarray) -> float:
@@ -152,7 +157,7 @@ class Level:
     def parts(self, bodies: Bodies) -> tuple[list[_Part], np.ndarray]:
         """The level's shells and the body each belongs to (matched to the full mesh's
         shells by order, or by nearest centre where simplification changed their number)."""
-        if getattr(self, "_parts", None) is None:
+        if self._parts is None:
             labels, n = body_labels(self.mesh.faces)
             shells = [compact(self.mesh.vertices, self.mesh.faces[labels == s]) for s in range(n)]
             if n == len(bodies.solid_of_shell):
@@ -212,10 +217,6 @@ class Constraints:
             self.scales = np.array([min(1.0, t) * abs(v_full)])
         self.centroid_scale = CENTROID_SCALE * t * abs(v_full) * size
         self.count = len(self.targets) + (3 if goal.keep_centroid else 0)
-
-    @property
-    def per_body(self) -> bool:
-        return len(self.targets) > 1 or self.goal.preserve == "per-body"
 
     def values(self, nodes: np.ndarray) -> np.ndarray:
         lvl = self.level
