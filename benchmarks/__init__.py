@@ -3,8 +3,10 @@
 ``python -m benchmarks [--quick] [--repeats N] [--out docs/BENCHMARKS.md]`` (``make bench``)
 reproduces Hirota, Maheshwari and Lin (1999) Tables 1 and 2 and Figures 5-8 with Isochor's
 solver, profiles one solve, measures how evaluation time scales with the mesh, times the
-346k-triangle armadillo, checks the performance targets and writes ``docs/BENCHMARKS.md``
-(and the figures next to it). It lives in the source tree, beside ``tests/``; the wheel does
+346k-triangle armadillo, times each constraint beyond the paper's one volume with and
+without it (``--only constraints`` runs that section alone and replaces it in the report),
+checks the performance targets and writes ``docs/BENCHMARKS.md`` (and the figures next to
+it). It lives in the source tree, beside ``tests/``; the wheel does
 not ship it.
 
 Every timing is the median of ``--repeats`` runs with the smallest and largest beside it.
@@ -29,8 +31,11 @@ Modules: :mod:`~benchmarks.timing` (timings, memory, machine), :mod:`~benchmarks
 (the examples and draining a solve), :mod:`~benchmarks.tables` (Tables 1-2, start levels,
 first records), :mod:`~benchmarks.scale` (evaluation at scale, the armadillo),
 :mod:`~benchmarks.profiling` (where a solve's time goes, with cProfile),
-:mod:`~benchmarks.targets`, :mod:`~benchmarks.report` (Markdown and figures) and
-:mod:`~benchmarks.run` (the command line).
+:mod:`~benchmarks.constraints` (what each constraint costs: pairs, rows, measuring) with
+:mod:`~benchmarks.constraint_cases` (its cases) and :mod:`~benchmarks.constraints_report`
+(its Markdown), :mod:`~benchmarks.targets`,
+:mod:`~benchmarks.report` (Markdown and figures) and :mod:`~benchmarks.run` (the command
+line).
 """
 
 #: the variables that set BLAS's thread count; ``python -m benchmarks`` sets them to 1

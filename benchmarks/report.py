@@ -8,6 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.cases import FIGURES, TITLES, Run, median_run, node_error
+from benchmarks.constraints import ConstraintRow
+from benchmarks.constraints_report import PEAK_LINE
+from benchmarks.constraints_report import section as constraints_section
 from benchmarks.profiling import SolveProfile
 from benchmarks.scale import ROOT, ScaleRow
 from benchmarks.tables import PAPER_TABLE2, LevelRow, SweepRow, Table1Row
@@ -40,6 +43,10 @@ class Results:
     targets: list[Target] = field(default_factory=list)
     figures: list[str] = field(default_factory=list)  #: file names next to the report
     notes: list[str] = field(default_factory=list)
+    #: the Constraints section's rows (None: not run) and its skipped cases
+    constraints: list[ConstraintRow] | None = None
+    constraint_notes: list[str] = field(default_factory=list)
+    command: str = ""  #: the command line that produced the run
 
 
 def draw_figure(row: Table1Row, size: float, path: Path) -> str | None:
@@ -366,7 +373,12 @@ def render(results: Results, kept: str = "") -> str:
         _profile(results.profile, lines)
     _sweep_and_figures(results, lines)
     _scale(results, lines)
-    lines.append(f"Peak RSS of the benchmark process: {peak_rss_mb():.0f} MB.\n")
+    if results.constraints is not None:
+        command = results.command or "python -m benchmarks" + (" --quick" * results.quick)
+        lines += constraints_section(
+            results.constraints, results.constraint_notes, command, results.env, results.repeats
+        )
+    lines.append(f"{PEAK_LINE}: {peak_rss_mb():.0f} MB.\n")
     lines.append(KEEP_MARKER)
     return "\n".join(lines) + "\n\n" + kept.lstrip("\n")
 

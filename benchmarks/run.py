@@ -16,8 +16,17 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.cases import EXAMPLES, FIGURES, Case, cow_case, example_case
+from benchmarks.constraint_cases import run_constraints
+from benchmarks.constraints_report import section, write_section
 from benchmarks.profiling import SolveProfile, profile_solve
-from benchmarks.report import DEFAULT_OUT, Results, draw_figure, write_report
+from benchmarks.report import (
+    DEFAULT_OUT,
+    KEEP_MARKER,
+    OLD_MARKERS,
+    Results,
+    draw_figure,
+    write_report,
+)
 from benchmarks.scale import (
     ROOT,
     SCALE_TORI,
@@ -35,7 +44,7 @@ from benchmarks.tables import (
     table2,
     table2_paper_schedule,
 )
-from benchmarks.targets import evaluate_targets
+from benchmarks.targets import constraint_targets, evaluate_targets
 from benchmarks.timing import environment, limit_blas_threads
 
 DEFAULT_MODELS = ROOT.parent / "shared" / "models"
@@ -69,6 +78,12 @@ def parser() -> argparse.ArgumentParser:
         help="folder with cow.obj and the armadillo (default ../shared/models, or $ISOCHOR_MODELS)",
     )
     p.add_argument("--no-figures", action="store_true", help="do not draw Figures 5-8")
+    p.add_argument(
+        "--only",
+        choices=("constraints",),
+        default=None,
+        help="run one section only; the report keeps its other sections and gets this one replaced",
+    )
     p.add_argument("--armadillo-child", metavar="PLY", help=argparse.SUPPRESS)
     return p
 
@@ -126,6 +141,23 @@ def scale_rows(quick: bool, repeats: int) -> list[ScaleRow]:
     return rows
 
 
+def only_constraints(
+    models: Path, repeats: int, quick: bool, out: Path | None, env: dict, command: str
+) -> int:
+    """``--only constraints``: the section alone, replaced in place in the report."""
+    print("Constraints: what each one costs (with / without, medians)")
+    rows, notes = run_constraints(models, repeats, quick)
+    targets = constraint_targets(rows)
+    print("\nTargets")
+    for t in targets:
+        print("  " + t.line())
+    if out is not None:
+        lines = section(rows, notes, command, env, repeats, targets)
+        write_section(out, lines, (KEEP_MARKER, *OLD_MARKERS))
+        print(f"\nWrote the section into {out}")
+    return 0
+
+
 def main(
     argv: Sequence[str] | None = None,
     *,
@@ -133,7 +165,8 @@ def main(
     user_blas: Mapping[str, str] | None = None,
 ) -> int:
     """Run the benchmark; ``numpy_first`` and ``user_blas`` come from ``__main__``."""
-    args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser().parse_args(argv)
     user_blas = dict(user_blas or {})
     limit_blas_threads(numpy_first, user_blas)
     if args.armadillo_child:
@@ -149,7 +182,10 @@ def main(
         f"{env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']}; {env['blas']}"
     )
     print(f"{repeats} repeats per timing; medians (min-max)\n")
-    res = Results(env, quick, repeats, [])
+    command = " ".join(["python -m benchmarks", *argv])
+    if args.only == "constraints":
+        return only_constraints(models, repeats, quick, out, env, command)
+    res = Results(env, quick, repeats, [], command=command)
 
     print("Table 1")
     cases = [example_case(n) for n in EXAMPLES]
@@ -212,8 +248,17 @@ def main(
                 float(np.median(a["first_record_s"])),
             )
 
+    print("\nConstraints: what each one costs (with / without, medians)")
+    res.constraints, res.constraint_notes = run_constraints(models, repeats, quick)
+
     res.targets = evaluate_targets(
-        res.rows, res.scale, res.arma, res.latency, quick=quick, arma_why=arma_why
+        res.rows,
+        res.scale,
+        res.arma,
+        res.latency,
+        quick=quick,
+        arma_why=arma_why,
+        constraints=res.constraints,
     )
     print("\nTargets")
     for t in res.targets:

@@ -333,17 +333,19 @@ class FoldGuard:
         if k == 0 or self.weight == 0:
             return 0.0, grad
         c0, c1, c2 = self._columns(nodes)
-        # d det / d column b = cofactor column b: the cross product of the other two
-        cof = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)])  # (3, k, 3)
-        dets = np.einsum("pa,pa->p", c0, cof[0])
+        dets = np.einsum("pa,pa->p", c0, np.cross(c1, c2))
         short = np.maximum(self.margin - dets, 0.0)
-        scale = self.weight / k
-        value = scale * float(np.sum(short**3))
         active = np.flatnonzero(short > 0)
-        if active.size == 0:
-            return value, grad
+        if active.size == 0:  # the usual case: nowhere near a fold, nothing more to do
+            return 0.0, grad
+        scale = self.weight / k
+        value = scale * float(np.sum(short[active] ** 3))
+        # d det / d column b = cofactor column b: the cross product of the other two,
+        # needed at the active points only
+        a0, a1, a2 = c0[active], c1[active], c2[active]
+        cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)])  # (3, a, 3)
         slope = -3.0 * scale * short[active] ** 2  # phi'(det) at the active points
-        w = (slope[None, :, None] * cof[:, active]).reshape(-1, 3)  # (3 * a, 3)
+        w = (slope[None, :, None] * cof).reshape(-1, 3)  # (3 * a, 3)
         g = self._g if active.size == k else self._g[:, active]
         grad += g.reshape(w.shape[0], -1).T @ w
         return value, grad

@@ -13,7 +13,18 @@ import numpy as np
 import pytest
 import scipy.optimize
 
-from benchmarks import cases, profiling, report, scale, tables, targets, timing
+from benchmarks import (
+    cases,
+    constraint_cases,
+    constraints,
+    constraints_report,
+    profiling,
+    report,
+    scale,
+    tables,
+    targets,
+    timing,
+)
 from benchmarks.cases import median_run, node_error
 from benchmarks.scale import ScaleRow
 from benchmarks.tables import Table1Row
@@ -25,7 +36,7 @@ from isochor.core.lattice import Lattice, PointBasis
 from isochor.core.shapes import sphere_levels, torus
 from isochor.core.springs import SpringNetwork
 from isochor.core.volume import VolumeOperator, signed_volume
-from tests.models import box
+from tests.models import box, model
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -106,6 +117,7 @@ def test_main_sets_one_blas_thread_before_numpy_is_imported():
         check=True,
     ).stdout
     assert "python -m benchmarks" in usage and "--quick" in usage and "--repeats" in usage
+    assert "--only" in usage and "constraints" in usage
 
 
 # -- cases and Tables 1-2 ----------------------------------------------------------------------
@@ -316,6 +328,102 @@ def test_targets_of_a_measured_run_are_definite(small_rows):
     assert by_name["armadillo 346k targets"].met is None
     for t in ts:
         assert t.measured and t.reason and t.status in t.line()
+
+
+# -- the Constraints section ---------------------------------------------------------------------
+def _check_rows(rows):
+    for r in rows:
+        assert r.constraint in constraints.CONSTRAINTS and r.key and r.case and r.triangles > 0
+        assert len(r.labels) == 2 and r.labels[0] != r.labels[1]
+        for t in (r.t_with, r.t_without):
+            assert len(t.values) == 1 and t.median > 0  # one repeat
+        assert r.first_with > 0 and r.ratio > 0 and 0 < r.tol_volume < 1
+        for o in (r.with_, r.without):
+            assert isinstance(o.converged, bool) and o.steps >= 0
+            assert 0 <= o.folded <= 1 and np.isfinite(o.min_det)
+            assert np.isfinite(o.target_error) and np.isfinite(o.centroid_shift)
+            assert np.isfinite(o.far_layer) and o.rigid_shift >= 0 and o.slide >= 0
+            assert isinstance(constraints.measured(r, o), str)
+        assert r.key in constraints.console_line(r)
+
+
+@pytest.fixture(scope="module")
+def built_in_constraints(tmp_path_factory):
+    """The section on tiny inputs from an empty models folder: the built-in cases only."""
+    lines = []
+    empty = tmp_path_factory.mktemp("no_models")
+    rows, notes = constraint_cases.run_constraints(empty, repeats=1, tiny=True, log=lines.append)
+    return rows, notes, lines
+
+
+def test_constraints_section_on_built_in_shapes_skips_the_shared_models(built_in_constraints):
+    rows, notes, lines = built_in_constraints
+    assert [r.key for r in rows] == ["torus-drag", "two-spheres"]
+    assert len(notes) == 7 and all("skipped" in n and "not found" in n for n in notes)
+    assert len(lines) == len(rows) + len(notes)
+    _check_rows(rows)
+    anchor, spheres = rows
+    # far-side holds the far layer; without it the drag moves the torus as a whole
+    assert anchor.with_.far_layer < 1e-9 and anchor.without.far_layer > 0.5
+    assert len(spheres.with_.body_errors) == len(spheres.without.body_errors) == 2
+
+    ts = targets.constraint_targets(rows)
+    by_name = {t.name: t for t in ts}
+    for name in (targets.ANCHOR_FAR, targets.PER_BODY, targets.CONVERGED):
+        assert by_name[name].met in (True, False), name
+    for name in (targets.FOLD_FREE, targets.FOLD_COST, targets.CENTROID):
+        assert by_name[name].met is None and "no" in by_name[name].reason
+    for t in ts:
+        assert t.measured and t.reason and t.status in t.line()
+
+
+def test_constraints_section_on_the_shared_models():
+    models = model("cow.obj").parent
+    for name in ("kitten.obj", "multibody_inconsistent_winding.stl"):
+        model(name)
+    rows, notes = constraint_cases.run_constraints(
+        models, repeats=1, quick=True, tiny=True, log=lambda s: None
+    )
+    assert not notes and {r.constraint for r in rows} == set(constraints.CONSTRAINTS)
+    _check_rows(rows)
+    ts = targets.constraint_targets(rows)
+    assert [t.met in (True, False) for t in ts] == [True] * len(ts)  # every outcome definite
+    every = targets.evaluate_targets([], [], None, {}, constraints=rows)
+    assert [t.name for t in every[-len(ts) :]] == [t.name for t in ts]
+    assert targets.evaluate_targets([], [], None, {})[-1].name == targets.FIRST_RECORD
+
+
+def test_constraints_section_is_rendered_and_spliced_into_a_report(built_in_constraints, tmp_path):
+    rows, notes, _ = built_in_constraints
+    env = timing.environment()
+    res = report.Results(env, True, 1, [], constraints=rows, constraint_notes=notes)
+    text = report.render(res, "\nmine\n")
+    assert constraints.HEADING in text and "`python -m benchmarks --quick`" in text
+    assert "| anchor | torus" in text and "| per body | two spheres" in text
+    assert text.index(constraints.HEADING) < text.index(report.KEEP_MARKER)
+    assert constraints.HEADING not in report.render(report.Results(env, True, 1, []))
+
+    block = "\n".join(constraints_report.section(rows, notes, "python -m x", env, 1))
+    other = "# Benchmarks\n\n## Table 1\n\nt1\n\n## Scale\n\ns\n\n"
+    peak = "Peak RSS of the benchmark process: 1 MB.\n\n"
+    old = other + peak + report.KEEP_MARKER + "\n\nhand-written\n"
+    markers = (report.KEEP_MARKER, *report.OLD_MARKERS)
+    once = constraints_report.splice(old, block, markers)
+    assert once.index("## Scale") < once.index(constraints.HEADING) < once.index("Peak RSS")
+    assert once.endswith(report.KEEP_MARKER + "\n\nhand-written\n") and "t1" in once
+    changed = block.replace("python -m x", "python -m y")
+    twice = constraints_report.splice(once, changed, markers)
+    assert twice == once.replace("python -m x", "python -m y")
+    assert twice.count(constraints.HEADING) == 1
+    # the section in the middle of a report: what follows it stays
+    mid = other.replace("## Scale", block + "\n## Scale")
+    assert constraints_report.splice(mid, changed, markers).count("## Scale\n\ns") == 1
+
+    out = tmp_path / "BENCH.md"
+    constraints_report.write_section(out, block.splitlines(), markers)
+    constraints_report.write_section(out, block.splitlines(), markers)
+    written = out.read_text(encoding="utf-8")
+    assert written.count(constraints.HEADING) == 1 and report.KEEP_MARKER in written
 
 
 # -- the report --------------------------------------------------------------------------------
