@@ -311,8 +311,8 @@ def _solve(args: argparse.Namespace) -> int:
     _summary(result, args, console)
     if not result.converged:
         folded = result.folds is not None and result.folds.folded
-        what = "the result is not a success" if folded else "the solve did not converge"
-        print(f"isochor: {what}: {result.message}", file=sys.stderr)
+        what = "" if folded else "the solve did not converge: "  # the message says "folded"
+        print(f"isochor: {what}{result.message}", file=sys.stderr)
         return EXIT_NOT_CONVERGED
     return EXIT_OK
 

@@ -36,15 +36,16 @@ GUARD_BLOCK = 1 << 20
 def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) -> np.ndarray:
     """Points of a regular grid strictly inside a closed mesh.
 
-    The grid spacing is chosen from the volume of the mesh's bounding box so that about
-    ``count`` grid points (cell centres) fall in the box; those with ``|winding number| > 0.5``
-    are kept. Winding numbers cost points x triangles: when that would exceed ``budget`` the
-    grid is made coarser. Deterministic.
+    The grid spacing is first chosen from the volume of the mesh's bounding box so that
+    about ``count`` grid points (cell centres) fall in the box; those with ``|winding number|
+    > 0.5`` are kept. A thin model (a flat torus) fills little of its box, so while fewer
+    than ``count / 2`` are inside, the grid is refined (twice at most). Winding numbers cost
+    points x triangles: the grid never exceeds ``budget`` of them. Deterministic.
 
     Parameters
     ----------
     mesh : a closed triangle mesh
-    count : about how many grid points to place in the bounding box
+    count : about how many points inside to aim for
     budget : most (point, triangle) pairs to spend on winding numbers
 
     Returns
@@ -62,15 +63,28 @@ def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) 
     most = min(int(count), int(budget) // mesh.n_faces)
     if most < 1:
         return empty
-    spacing = (box / most) ** (1.0 / 3.0)
+    triangles = mesh.vertices[mesh.faces]
+    inside = empty
+    for _ in range(3):  # a thin model fills little of its box: refine until about `count`
+        grid = _grid(lo, ext, (box / most) ** (1.0 / 3.0), mesh.n_faces, budget)
+        winding = _winding_numbers(grid, triangles)
+        inside = np.ascontiguousarray(grid[np.abs(winding) > INSIDE])
+        room = int(budget) // mesh.n_faces
+        if len(inside) >= count / 2 or len(grid) >= room:
+            break
+        most = min(room, int(most * min(8.0, count / max(len(inside), 1))))
+    return inside
+
+
+def _grid(lo: np.ndarray, ext: np.ndarray, spacing: float, faces: int, budget: int) -> np.ndarray:
+    """Cell centres of a regular grid over the box, about ``spacing`` apart, within the
+    winding-number budget."""
     cells = np.maximum(1, np.rint(ext / spacing)).astype(np.int64)
-    while int(np.prod(cells)) * mesh.n_faces > budget:  # rounding went over the budget
+    while int(np.prod(cells)) * faces > budget:  # rounding went over the budget
         spacing *= 1.05
         cells = np.maximum(1, np.rint(ext / spacing)).astype(np.int64)
     axes = [lo[c] + (np.arange(cells[c]) + 0.5) * (ext[c] / cells[c]) for c in range(3)]
-    grid = np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
-    winding = _winding_numbers(grid, mesh.vertices[mesh.faces])
-    return np.ascontiguousarray(grid[np.abs(winding) > INSIDE])
+    return np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
 
 
 def _winding_numbers(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:

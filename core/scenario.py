@@ -66,8 +66,8 @@ GOAL_DEFAULTS = {
 MAX_SCENARIO_BYTES = 16 * 2**20
 #: longest integer literal read (Python refuses more than 4300 digits, and no field needs 20)
 MAX_DIGITS = 100
-#: the volume ratio, the tolerances: the range the solver is meant for
-RATIO_RANGE = (1e-6, 1e6)
+#: the tolerances: the range the solver is meant for (the volume ratio's is
+#: :data:`isochor.core.constraints.RATIO_RANGE`)
 TOLERANCE_RANGE = (1e-12, 0.5)
 
 
@@ -179,8 +179,8 @@ class Scenario:
             else:
                 moves.append(Move(node, to=_vec(mv["to"], f"{where}.to")))
         pins, axis_pins = _pins(_list(doc.get("pins", []), "pins"), shape, version)
-        ratio = number(doc.get("target_volume_ratio", 1.0), "target_volume_ratio", RATIO_RANGE)
-        check_ratio(ratio, "target_volume_ratio")
+        ratio = number(doc.get("target_volume_ratio", 1.0), "target_volume_ratio")
+        ratio = check_ratio(ratio, "target_volume_ratio")
         preserve = _word(doc.get("preserve", "total"), "preserve", PRESERVE)
         anchor = _word(doc.get("anchor", "far-side"), "anchor", ANCHORS)
         keep_centroid = _flag(doc.get("keep_centroid", False), "keep_centroid")
