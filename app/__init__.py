@@ -1,7 +1,8 @@
 """Isochor's desktop editor and command line: PySide6 + pyvistaqt, imported only here.
 
 Arrows point down: ``launch -> mainwindow -> (actions, files, controller, viewport, panel,
-plot) -> (document, picking, scene, worker, commands) -> isochor.core``.
+goalbox, plot, readout) -> (document, goalrules, state, picking, scene, worker, commands) ->
+isochor.core``.
 
 - :mod:`.cli`         ``isochor``: the editor, ``solve``, ``examples`` (Qt only for the editor)
 - :mod:`.launch`      ``run_editor``: the display check, the Qt application, screenshot mode
@@ -10,7 +11,10 @@ plot) -> (document, picking, scene, worker, commands) -> isochor.core``.
 - :mod:`.files`       open, save, export, the unsaved-changes prompt
 - :mod:`.controller`  the editing session (a QObject, no widgets): document, undo stack,
   solver worker, frame scheduling
-- :mod:`.document`    the editor model (Qt-free): states, edit rules, selection, drag session
+- :mod:`.document`    the editor model (Qt-free): edit rules, selection, drag session, files
+- :mod:`.goalrules`   the goal's edit rules (Qt-free): hold far side, centre of mass, each
+  body, fold guard, pins on some axes, what the far-side anchor holds
+- :mod:`.state`       the editable states, solve summaries and their words (Qt-free)
 - :mod:`.commands`    undo commands acting on the document
 - :mod:`.worker`      the solve generator on a background thread; records reach the GUI by
   queued signals
@@ -18,6 +22,8 @@ plot) -> (document, picking, scene, worker, commands) -> isochor.core``.
 - :mod:`.scene`       the view's actors, updated in place per frame
 - :mod:`.picking`     projection and picking maths (numpy only)
 - :mod:`.panel`       the Inspector: selection, pins, solve options, lattice, display
+- :mod:`.goalbox`     the Inspector's Constraints group and the last solve's notes
+- :mod:`.readout`     the status bar, the notes and the marks on the view (roles, held, folds)
 - :mod:`.plot`        the live convergence plot (QPainter, log scale)
 - :mod:`.style`       colours and the application look
 """

@@ -113,6 +113,16 @@ def _build_actions(win) -> None:
         checkable=True,
         tip="Solve continuously while a node is dragged",
     )
+    win.act_pin_axes = [
+        A(
+            f"Pin on {axis.upper()} Only",
+            lambda _=False, a=axis: win.pin_on(a),
+            tip=f"Pin the selected nodes on {axis} only: the solver keeps their {axis} "
+            "and moves them on the other axes",
+        )
+        for axis in "xyz"
+    ]
+    _goal_actions(win)
     win.act_solve = A("&Solve Again", win.solve_again, K("Ctrl+R"))
     win.act_stop = A("S&top Solve", s.stop_solve, K("Ctrl+."))
     win.act_frame = A("&Frame Model", vp.frame, K("F"))
@@ -126,6 +136,34 @@ def _build_actions(win) -> None:
     win.act_smooth = A("&Smooth Shading", win.display_changed, checkable=True, checked=True)
     win.act_help = A("&Controls", win.show_controls, K("F1"))
     win.act_about = A("&About Isochor", win.show_about)
+
+
+def _goal_actions(win) -> None:
+    """The goal's settings as checkable actions: a user's trigger commits one undoable edit
+    (the window keeps their check marks in step with the state)."""
+    from .goalbox import ANCHOR_TIP, CENTROID_TIP, FOLD_TIP, VOLUME_TIP
+
+    doc = lambda: win.doc  # noqa: E731 (the window's document changes when a file opens)
+    rules = {
+        "anchor": ("&Hold Far Side", ANCHOR_TIP, True, lambda on: doc().edit_anchor(on)),
+        "centroid": (
+            "&Keep Centre of Mass",
+            CENTROID_TIP,
+            False,
+            lambda on: doc().edit_keep_centroid(on),
+        ),
+        "per_body": (
+            "Preserve &Each Body",
+            VOLUME_TIP,
+            False,
+            lambda on: doc().edit_preserve("per-body" if on else "total"),
+        ),
+        "fold_guard": ("&Fold Guard", FOLD_TIP, True, lambda on: doc().edit_fold_guard(on)),
+    }
+    for name, (text, tip, checked, rule) in rules.items():
+        a = _action(win, text, checkable=True, checked=checked, tip=tip)
+        a.triggered.connect(lambda on, rule=rule: win.commit_edit(rule(on)))
+        setattr(win, f"act_{name}", a)
 
 
 def _build_menus(win) -> None:
@@ -158,14 +196,25 @@ def _build_menus(win) -> None:
         win.act_box,
         None,
         win.act_pin,
+        *win.act_pin_axes,
         win.act_pin_all,
         win.act_unpin_all,
         win.act_reset,
     ):
         m.addSeparator() if a is None else m.addAction(a)
     m = mb.addMenu("&Solve")
-    for a in (win.act_preserve, win.act_live, win.act_solve, win.act_stop):
-        m.addAction(a)
+    for a in (
+        win.act_preserve,
+        win.act_live,
+        win.act_solve,
+        win.act_stop,
+        None,
+        win.act_anchor,
+        win.act_centroid,
+        win.act_per_body,
+        win.act_fold_guard,
+    ):
+        m.addSeparator() if a is None else m.addAction(a)
     m = mb.addMenu("&View")
     m.addAction(win.act_frame)
     for a in win.act_views.values():

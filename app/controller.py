@@ -81,7 +81,8 @@ class EditorSession(QObject):
         self.frames_by_generation: dict[int, int] = {}
         self.accepted_log: deque[tuple[int, str]] = deque(maxlen=50_000)
         self.dropped = 0
-        self.last_solve_input: tuple[np.ndarray, np.ndarray, float] | None = None
+        #: the nodes, (n, 3) fixed coordinates and goal of the last solve of a state
+        self.last_solve_input: tuple[np.ndarray, np.ndarray, object] | None = None
         self.last_result = None
 
         self.frame_timer = QTimer(self)
@@ -258,14 +259,13 @@ class EditorSession(QObject):
         st = self.document.state
         self._solving_cell = self.document.cell
         self._live_preview = False
-        self.last_solve_input = (np.array(st.nodes), np.array(st.fixed), st.target_ratio)
-        self._begin(st, st.nodes, st.fixed)
+        self.last_solve_input = (np.array(st.nodes), np.array(st.fixed_axes), st.goal)
+        self._begin(st, st.nodes, st.fixed_axes)
 
     def _begin(self, st, nodes, fixed) -> None:
+        """Solve ``nodes`` with the (n, 3) ``fixed`` coordinates, to ``st``'s goal."""
         self._deferred = False
-        gen = self.worker.start(
-            st.surface, nodes, fixed, target_ratio=st.target_ratio, options=st.problem.options
-        )
+        gen = self.worker.start(st.surface, nodes, fixed, goal=st.goal, options=st.problem.options)
         self._accept_gen = gen
         if not self._live_preview:
             self.activity = "solving"
@@ -384,3 +384,4 @@ def _prepare(document: Document) -> None:
     surface = document.surface
     surface.level(-1)
     _ = surface.springs
+    _ = surface.bodies  # the window offers "Each body" only for several

@@ -11,18 +11,20 @@ the solved state into that cell, so undo and redo land on solved states without 
 
 Edits start from the nodes the user sees (:meth:`Document.base_nodes`): the newest
 intermediate nodes of a running solve, or with "preserve volume" off the plain FFD (free nodes
-at rest).
+at rest). The rules of the goal's settings and of pins on some axes are
+:mod:`isochor.app.goalrules`'.
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from ..core.constraints import check_ratio
 from ..core.errors import IsochorError
 from ..core.examples import example_scenario
 from ..core.export import export_file
@@ -31,7 +33,8 @@ from ..core.lattice import MAX_NODES, MIN_NODES
 from ..core.mesh import TriMesh
 from ..core.problem import Problem, build, default_lattice_shape, scenario_model
 from ..core.scenario import Move, Scenario
-from .state import DocState, SolveSummary, StateCell, describe_status, initial_state, plural
+from .goalrules import Edit, GoalRules
+from .state import AXES, DocState, SolveSummary, StateCell, describe_status, initial_state, plural
 
 __all__ = [
     "Document",
@@ -45,14 +48,6 @@ __all__ = [
     "initial_state",
     "plural",
 ]
-
-
-@dataclass(frozen=True)
-class Edit:
-    """A new state and the words of its undo step."""
-
-    state: DocState
-    text: str
 
 
 class DragSession:
@@ -86,8 +81,9 @@ class DragSession:
         return out
 
     def fixed(self) -> np.ndarray:
-        """(n,) bool: what a live preview solve holds (the old fixed nodes and the dragged)."""
-        fixed = self.before.state.fixed.copy()
+        """(n, 3) bool: the coordinates a live preview solve holds (the old fixed ones and
+        the dragged nodes)."""
+        fixed = self.before.state.fixed_axes.copy()
         fixed[self.rows] = True
         return fixed
 
@@ -100,7 +96,7 @@ class DragSession:
 Listener = Callable[[str], None]
 
 
-class Document:
+class Document(GoalRules):
     """What the editor edits: the current state cell, the selection, the drag, the file.
 
     Events (a listener gets the name): ``"state"`` the current cell changed (an edit, undo,
@@ -211,7 +207,7 @@ class Document:
         st = self.state if state is None else state
         if self.preserve:
             return np.array(st.nodes)
-        return np.where(st.fixed[:, None], st.nodes, st.lattice.rest_nodes)
+        return np.where(st.fixed_axes, st.nodes, st.lattice.rest_nodes)
 
     def base_nodes(self) -> np.ndarray:
         """The nodes on screen, the base of every new edit."""
@@ -261,7 +257,7 @@ class Document:
         rows = np.arange(st.lattice.n_nodes) if rows is None else np.unique(np.asarray(rows, int))
         if len(rows) == 0:
             return None
-        changes = (~st.pinned[rows]).any() if pin else st.fixed[rows].any()
+        changes = (~st.pin_axes[rows].all(axis=1)).any() if pin else st.fixed[rows].any()
         if not changes:
             return None
         new = st.edited(nodes=self.base_nodes()).pinned_as(rows, pin)
@@ -276,9 +272,12 @@ class Document:
         return self.edit_pins(rows, not bool(self.state.fixed[rows].all()))
 
     def edit_target(self, percent: float) -> Edit | None:
+        """A new target volume, ``percent`` of the original (None: not a positive number
+        or no change). Raises :class:`IsochorError` beyond what a lattice can reach."""
         ratio = float(percent) / 100.0
         if not (np.isfinite(ratio) and ratio > 0) or ratio == self.state.target_ratio:
             return None
+        check_ratio(ratio, "target volume ratio")
         return Edit(
             self.state.edited(nodes=self.base_nodes(), target_ratio=ratio),
             f"Target volume {percent:g} %",
@@ -293,7 +292,7 @@ class Document:
             return None
         new = st.edited(
             nodes=rest,
-            pinned=np.zeros(n, bool),
+            pin_axes=np.zeros((n, 3), bool),
             moved=np.zeros(n, bool),
             solved=st.target_ratio == 1.0,
         )
@@ -311,7 +310,7 @@ class Document:
         if shape == tuple(self.state.lattice.shape):
             return None
         old = self.problem
-        scenario = old.scenario.with_(lattice_nodes=shape, moves=(), pins=())
+        scenario = old.scenario.with_(lattice_nodes=shape, moves=(), pins=(), axis_pins=())
         problem = self._problems.get(_key_of(scenario))
         if problem is None:
             problem = build(scenario, model=old.model)
@@ -327,6 +326,7 @@ class Document:
             np.zeros(n, bool),
             ratio,
             solved=ratio == 1.0,
+            **self.state.settings(),
         )
         return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape))
 
@@ -351,16 +351,27 @@ class Document:
 
     # -- files -----------------------------------------------------------------------------
     def scenario(self) -> Scenario:
-        """The current state as a scenario: moved nodes as ``to`` moves, pins, target."""
+        """The current state as a scenario: moved nodes as ``to`` moves, pins (on all axes
+        or on some), the target and the goal's settings (a scenario that uses none of them
+        is written as version 1)."""
         st = self.state
         lat = st.lattice
         moves = tuple(
             Move(lat.ijk(r), to=tuple(float(x) for x in st.nodes[r]))
             for r in np.flatnonzero(st.moved)
         )
-        pins = tuple(lat.ijk(r) for r in np.flatnonzero(st.pinned & ~st.moved))
+        full = st.pin_axes.all(axis=1)
+        pins = tuple(lat.ijk(r) for r in np.flatnonzero(full & ~st.moved))
+        axis_pins = tuple(
+            (lat.ijk(r), "".join(a for a, on in zip(AXES, st.pin_axes[r]) if on))
+            for r in np.flatnonzero(st.axis_pinned)
+        )
         return st.problem.scenario.with_(
-            moves=moves, pins=pins, target_volume_ratio=float(st.target_ratio)
+            moves=moves,
+            pins=pins,
+            axis_pins=axis_pins,
+            target_volume_ratio=float(st.target_ratio),
+            **st.settings(),
         )
 
     def save(self, path: str | Path) -> None:

@@ -4,8 +4,9 @@ The window holds no editing state. The :class:`~isochor.app.controller.EditorSes
 the document, the undo stack, the solver worker and the frame schedule; the window turns what
 the user does into calls on it (edits come from the document's rules) and draws what its
 signals say: the view (:mod:`isochor.app.viewport`), the Inspector panel, the convergence
-plot and the status bar. Menus and the toolbar are :mod:`isochor.app.actions`; the file
-commands :mod:`isochor.app.files`.
+plot; the status bar, the notes and the marks on the view are :mod:`isochor.app.readout`.
+Menus and the toolbar are :mod:`isochor.app.actions`; the file commands
+:mod:`isochor.app.files`.
 """
 
 from __future__ import annotations
@@ -16,20 +17,18 @@ import time
 import numpy as np
 from PySide6.QtCore import QPoint, Qt, QTimer, Signal
 from PySide6.QtGui import QIcon
-from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QMenu, QMessageBox, QScrollArea
+from PySide6.QtWidgets import QDockWidget, QMainWindow, QMenu, QMessageBox, QScrollArea
 
 from .. import assets
 from ..core.errors import IsochorError
-from . import actions, style
+from . import actions
 from .controller import EditorSession
 from .document import Document, plural
 from .files import FileCommands
 from .panel import Panel, bind
 from .plot import ConvergencePlot
+from .readout import Readout
 from .viewport import Viewport
-
-#: status tone -> colour of the status chip and the Solve panel's sentence
-TONES = {"neutral": "#8b95a5", "busy": style.MOVED, "good": style.FREE, "bad": style.PINNED}
 
 
 class MainWindow(QMainWindow):
@@ -61,7 +60,7 @@ class MainWindow(QMainWindow):
         self.plot = ConvergencePlot()
         self._build_docks()
         actions.build(self)
-        self._build_status()
+        self.readout = Readout(self)
         self._connect()
         self._document_loaded()
         self._status_changed()
@@ -93,7 +92,11 @@ class MainWindow(QMainWindow):
         scroll.setWidget(self.panel)
         scroll.setWidgetResizable(True)
         scroll.setFrameShape(QScrollArea.Shape.NoFrame)
-        scroll.setMinimumWidth(290)
+        # wide enough for the panel and a vertical scroll bar: never a horizontal one
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        bar = scroll.verticalScrollBar().sizeHint().width()
+        scroll.setMinimumWidth(self.panel.minimumSizeHint().width() + bar)
+        self.inspector_scroll = scroll
         features = QDockWidget.DockWidgetFeature
         self.inspector_dock = QDockWidget("Inspector", self)
         self.inspector_dock.setObjectName("inspector")
@@ -109,14 +112,6 @@ class MainWindow(QMainWindow):
         self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, self.plot_dock)
         self.resizeDocks([self.plot_dock], [190], Qt.Orientation.Vertical)
 
-    def _build_status(self) -> None:
-        sb = self.statusBar()
-        self.st_state, self.st_volume, self.st_level, self.st_solver, self.st_time = (
-            QLabel() for _ in range(5)
-        )
-        for w in (self.st_state, self.st_volume, self.st_level, self.st_solver, self.st_time):
-            sb.addPermanentWidget(w)
-
     def _connect(self) -> None:
         s, vp, p = self.session, self.viewport, self.panel
         s.documentLoaded.connect(self._document_loaded)
@@ -124,6 +119,7 @@ class MainWindow(QMainWindow):
         s.stateChanged.connect(self._state_changed)
         s.selectionChanged.connect(self._selection_changed)
         s.statusChanged.connect(self._status_changed)
+        self.act_preserve.toggled.connect(lambda _: self.readout.show_state())
         s.frameReady.connect(self._draw)
         s.solveStarted.connect(self._solve_started)
         s.recordAccepted.connect(self._record)
@@ -147,9 +143,17 @@ class MainWindow(QMainWindow):
         )
         p.positionEdited.connect(self.type_position)
         p.pinClicked.connect(lambda on: self.set_pins(self.doc.selection, on))
+        p.pinAxisClicked.connect(
+            lambda axis, on: self.commit_edit(self.doc.edit_pin_axis(self.doc.selection, axis, on))
+        )
+        g = p.goal
+        g.anchorClicked.connect(lambda on: self.commit_edit(self.doc.edit_anchor(on)))
+        g.centroidClicked.connect(lambda on: self.commit_edit(self.doc.edit_keep_centroid(on)))
+        g.preserveChosen.connect(lambda mode: self.commit_edit(self.doc.edit_preserve(mode)))
+        g.foldGuardClicked.connect(lambda on: self.commit_edit(self.doc.edit_fold_guard(on)))
         p.pin_all.clicked.connect(self.act_pin_all.trigger)
         p.unpin_all.clicked.connect(self.act_unpin_all.trigger)
-        p.targetEdited.connect(lambda percent: s.commit(self.doc.edit_target(percent)))
+        p.targetEdited.connect(self.set_target)
         p.latticeRequested.connect(self.rebuild_lattice)
         p.solve_button.clicked.connect(self.solve_again)
         p.reset_button.clicked.connect(self.act_reset.trigger)
@@ -183,14 +187,19 @@ class MainWindow(QMainWindow):
         st = self.state
         up = "z" if "builtin" in st.problem.scenario.model else "y"
         self.viewport.set_scene(
-            st.surface, self.doc.view_nodes(), st.pinned, st.moved, up=up, reset_camera=reset_camera
+            st.surface,
+            self.doc.view_nodes(),
+            st.pin_axes,
+            st.moved,
+            up=up,
+            reset_camera=reset_camera,
         )
         self.display_changed()
         self.panel.show_shape(st.lattice.shape)
 
     def _state_changed(self) -> None:
         st = self.state
-        self.viewport.scene.set_flags(st.pinned, st.moved)
+        self.readout.show_state()
         self.panel.show_target(st.target_ratio * 100)
         self._selection_changed()
         self._status_changed()
@@ -206,28 +215,14 @@ class MainWindow(QMainWindow):
             st.lattice,
             self.doc.selection,
             self.viewport.nodes,
-            st.pinned,
+            st.pin_axes,
             st.moved,
             step=st.surface.size / 100,
+            held=self.readout.held_mask,
         )
 
     def _status_changed(self) -> None:
-        chip, tone, sentence = self.session.status()
-        color = TONES[tone]
-        self.st_state.setText(f'<span style="color:{color}">&#9679;</span> {chip}')
-        self.panel.show_solve_state(sentence, color)
-        r = self.state.result
-        if self.session.busy() or self.doc.drag is not None:
-            return  # the progress records say what runs
-        if r is None or not self.doc.preserve:
-            for label in (self.st_level, self.st_solver, self.st_time):
-                label.setText("")
-            return
-        self.st_level.setText(r.span())
-        self.st_solver.setText(
-            f"σ {r.sigma:.3g} · λ {r.lam:.3g} · |dV|/V0 {abs(r.rel_volume_error):.1e} (full mesh)"
-        )
-        self.st_time.setText(f"{1000 * r.elapsed:.0f} ms")
+        self.readout.status_changed()
 
     def _draw(self, nodes: np.ndarray, record=None) -> None:
         t0 = time.perf_counter()
@@ -235,19 +230,8 @@ class MainWindow(QMainWindow):
         self.viewport.set_frame(nodes, st.surface.deform(nodes))
         self.viewport.update()
         self.redraws += 1
-        self.st_volume.setText(
-            f"Volume {100 * self.viewport.model_volume / st.surface.rest_volume:.2f}"
-            f" % (target {100 * st.target_ratio:.4g} %)"
-        )
+        self.readout.frame(record)
         if record is not None:
-            self.st_level.setText(
-                f"Level {record.level + 1}/{record.n_levels} · {record.triangles:,} triangles"
-            )
-            self.st_solver.setText(
-                f"step {record.step} · σ {record.sigma:.3g} · λ "
-                f"{record.lam:.3g} · |dV|/V0 {abs(record.rel_volume_error):.1e}"
-            )
-            self.st_time.setText(f"{1000 * record.elapsed:.0f} ms")
             self.plot.update()
         self._show_selection()  # (the scene moved the selection markers with the nodes)
         self.session.frame_cost = time.perf_counter() - t0 + self.viewport.paint_seconds
@@ -281,6 +265,7 @@ class MainWindow(QMainWindow):
     def _drag_started(self) -> None:
         self._frame_after_solve = False
         if self.session.begin_drag():
+            self.viewport.scene.set_folds(None)  # they belong to the nodes before the drag
             self.viewport.show_info(self.session.drag_text())
 
     def _drag_finished(self) -> None:
@@ -291,26 +276,41 @@ class MainWindow(QMainWindow):
         self.viewport.show_info("")
         self.session.cancel_drag()
 
-    def _commit(self, edit) -> bool:
+    def commit_edit(self, edit) -> bool:
+        """Commit ``edit`` (from a document rule) as one undo step; False: nothing to do."""
         self._frame_after_solve = False
         return self.session.commit(edit)
 
     def type_position(self, axis: int, value: float) -> None:
-        self._commit(self.doc.edit_position(axis, value))
+        self.commit_edit(self.doc.edit_position(axis, value))
 
     def toggle_pin(self) -> None:
         if len(self.doc.selection) == 0:
             self.statusBar().showMessage("Select nodes to pin first.", 3000)
             return
-        self._commit(self.doc.edit_toggle_pin())
+        self.commit_edit(self.doc.edit_toggle_pin())
 
     def set_pins(self, rows, pin: bool) -> None:
         """Pin (or unpin) ``rows``; None means every node. One undo step."""
-        self._commit(self.doc.edit_pins(rows, pin))
+        self.commit_edit(self.doc.edit_pins(rows, pin))
+
+    def pin_on(self, axes: str) -> None:
+        """Pin the selection on ``axes`` only (one undo step)."""
+        if len(self.doc.selection) == 0:
+            self.statusBar().showMessage("Select nodes to pin first.", 3000)
+            return
+        self.commit_edit(self.doc.edit_pin_axes(self.doc.selection, axes))
+
+    def set_target(self, percent: float) -> None:
+        try:
+            self.commit_edit(self.doc.edit_target(percent))
+        except IsochorError as exc:
+            self.panel.show_target(self.state.target_ratio * 100)
+            self.error("Cannot set the target volume", str(exc))
 
     def rebuild_lattice(self, shape) -> None:
         try:
-            self._commit(self.doc.edit_lattice(shape))
+            self.commit_edit(self.doc.edit_lattice(shape))
         except IsochorError as exc:
             self.error("Cannot rebuild the lattice", str(exc))
 
@@ -340,6 +340,8 @@ class MainWindow(QMainWindow):
             menu.addAction(
                 f"Unpin {what}" if fixed else f"Pin {what}", lambda: self.set_pins(rows, not fixed)
             )
+            for a in self.act_pin_axes:
+                menu.addAction(a)
             menu.addSeparator()
         for a in (self.act_pin_all, self.act_unpin_all, None, self.act_select_all, self.act_frame):
             menu.addSeparator() if a is None else menu.addAction(a)
@@ -399,7 +401,8 @@ Right click: pin menu<br><br>
 X / Y / Z: lock to that axis · Shift+X / Y / Z: lock to the plane across it<br>
 the same key again unlocks · Esc: cancel<br><br>
 <b>Keys</b><br>
-P: pin or unpin the selection · F: frame · Home, 1, 3, 7 (Ctrl: opposite): views<br>
+P: pin or unpin the selection (Edit menu: pin on one axis only) · F: frame<br>
+Home, 1, 3, 7 (Ctrl: opposite): views<br>
 B: box select · V: preserve volume · L: live solve · Ctrl+A: select all<br>
 Ctrl+Z / Ctrl+Shift+Z: undo / redo
 """

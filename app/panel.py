@@ -1,4 +1,5 @@
-"""The side panel: the selection (exact position, pin), solve options, lattice, display."""
+"""The side panel: the selection (exact position, pin, pinned axes), solve options, what the
+solve holds (:class:`~isochor.app.goalbox.GoalBox`), lattice, display."""
 
 from __future__ import annotations
 
@@ -19,8 +20,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from ..core.constraints import RATIO_RANGE
 from ..core.lattice import MAX_NODES, MIN_NODES
 from . import style
+from .goalbox import GoalBox
+from .state import axes_words
 
 
 def bind(action: QAction, box: QCheckBox) -> None:
@@ -67,12 +71,15 @@ class Panel(QWidget):
     positionEdited(int, float) : axis 0-2 and the typed coordinate (of the node, or of the
                                  centroid of a multi-selection)
     pinClicked(bool) : the pin check box was clicked: pin (True) or unpin the selection
+    pinAxisClicked(int, bool) : an axis box was clicked: pin (True) or free the selection on
+                                that axis (0-2) only
     targetEdited(float) : target volume, percent of the original
     latticeRequested(tuple) : rebuild the lattice with (l, m, n) nodes
     """
 
     positionEdited = Signal(int, float)
     pinClicked = Signal(bool)
+    pinAxisClicked = Signal(int, bool)
     targetEdited = Signal(float)
     latticeRequested = Signal(tuple)
 
@@ -107,6 +114,22 @@ class Panel(QWidget):
         self.pin_box.setTristate(False)
         self.pin_box.clicked.connect(lambda on: self.pinClicked.emit(bool(on)))
         form.addWidget(self.pin_box)
+        axes_row = QHBoxLayout()
+        axes_label = QLabel("Pinned on")
+        axes_label.setStyleSheet("color: #8b95a5;")
+        axes_row.addWidget(axes_label)
+        self.axis_boxes = []
+        for i, name in enumerate("XYZ"):
+            box = QCheckBox(name)
+            box.setToolTip(
+                f"Pin the selected nodes on {name.lower()}: the solver keeps their "
+                f"{name.lower()} and moves them on the other axes"
+            )
+            box.clicked.connect(lambda _=False, axis=i, b=box: self._axis_clicked(axis, b))
+            axes_row.addWidget(box)
+            self.axis_boxes.append(box)
+        axes_row.addStretch(1)
+        form.addLayout(axes_row)
         row = QHBoxLayout()
         self.pin_all = QPushButton("Pin all")
         self.unpin_all = QPushButton("Unpin all")
@@ -121,7 +144,7 @@ class Panel(QWidget):
         sform.setLabelAlignment(Qt.AlignmentFlag.AlignLeft)
         self.preserve_box = QCheckBox("Preserve volume")
         self.live_box = QCheckBox("Live: solve while dragging")
-        self.target = _spin(1.0, 1000.0, 2, " %")
+        self.target = _spin(100 * RATIO_RANGE[0], 100 * RATIO_RANGE[1], 2, " %")
         self.target.setValue(100.0)
         self.target.setSingleStep(5.0)
         self.target.valueChanged.connect(self.targetEdited.emit)
@@ -138,6 +161,9 @@ class Panel(QWidget):
         buttons.addWidget(self.reset_button)
         sform.addRow(buttons)
         lay.addWidget(solve)
+        self.goal = GoalBox()
+        guard_wheel(self.goal.volume_choice)
+        lay.addWidget(self.goal)
 
         # lattice
         lat = QGroupBox("Lattice")
@@ -180,9 +206,10 @@ class Panel(QWidget):
         lattice,
         rows: np.ndarray,
         nodes: np.ndarray,
-        pinned: np.ndarray,
+        pin_axes: np.ndarray,
         moved: np.ndarray,
         step: float,
+        held: np.ndarray | None = None,
     ) -> None:
         rows = np.asarray(rows, dtype=int)
         enabled = len(rows) > 0
@@ -190,35 +217,34 @@ class Panel(QWidget):
             s.setEnabled(enabled)
             s.setSingleStep(step)
         self.pin_box.setEnabled(enabled)
+        for b in self.axis_boxes:
+            b.setEnabled(enabled)
         if not enabled:
             self.sel_title.setText("No node selected")
             self.sel_role.setText("Click a node, or Shift-drag a box around several.")
             self._set_coords(None)
-            self._set_pin(False)
+            self._set_pin(False, np.zeros((0, 3), bool))
             return
-        fixed = pinned[rows] | moved[rows]
+        axes = np.asarray(pin_axes, bool) | np.asarray(moved, bool)[:, None]
+        fixed = axes[rows].any(axis=1)
         if len(rows) == 1:
             r = int(rows[0])
             i, j, k = lattice.ijk(r)
             self.sel_title.setText(f"Node ({i}, {j}, {k})")
-            role = (
-                "moved by you: fixed until unpinned"
-                if moved[r]
-                else "pinned"
-                if pinned[r]
-                else "free: the solver moves it"
-            )
-            color = style.MOVED if moved[r] else style.PINNED if pinned[r] else style.FREE
+            hold = held is not None and r < len(held) and bool(held[r])
+            color, role = _role(axes[r], bool(moved[r]), hold)
             self.sel_role.setText(f'<span style="color:{color}">&#9679;</span> {role}')
             self._set_coords(nodes[r])
         else:
+            some = int((fixed & ~axes[rows].all(axis=1)).sum())
+            some = f", {some} of them on some axes only" if some else ""
             self.sel_title.setText(f"{len(rows)} nodes selected")
             self.sel_role.setText(
-                f"{int(fixed.sum())} fixed, {int((~fixed).sum())} free; "
+                f"{int(fixed.sum())} fixed{some}, {int((~fixed).sum())} free; "
                 "the fields show their centre."
             )
             self._set_coords(nodes[rows].mean(axis=0))
-        self._set_pin(bool(fixed.all()))
+        self._set_pin(bool(axes[rows].all()), axes[rows])
 
     def _set_coords(self, p) -> None:
         for i, s in enumerate(self.coord):
@@ -228,10 +254,27 @@ class Panel(QWidget):
             s.setValue(0.0 if p is None else float(p[i]))
             s.blockSignals(False)
 
-    def _set_pin(self, on: bool) -> None:
+    def _set_pin(self, on: bool, axes: np.ndarray) -> None:
+        """The pin box (every selected node fixed on every axis) and the axis boxes
+        (checked: every selected node pinned on that axis; partly: some are)."""
         self.pin_box.blockSignals(True)
         self.pin_box.setChecked(on)
         self.pin_box.blockSignals(False)
+        for a, box in enumerate(self.axis_boxes):
+            box.blockSignals(True)
+            if len(axes) and axes[:, a].all():
+                box.setTristate(False)
+                box.setCheckState(Qt.CheckState.Checked)
+            elif len(axes) and axes[:, a].any():
+                box.setCheckState(Qt.CheckState.PartiallyChecked)
+            else:
+                box.setTristate(False)
+                box.setCheckState(Qt.CheckState.Unchecked)
+            box.blockSignals(False)
+
+    def _axis_clicked(self, axis: int, box: QCheckBox) -> None:
+        """A click pins the axis unless every selected node was pinned on it already."""
+        self.pinAxisClicked.emit(axis, box.checkState() != Qt.CheckState.Unchecked)
 
     def show_target(self, percent: float) -> None:
         self.target.blockSignals(True)
@@ -246,3 +289,17 @@ class Panel(QWidget):
 
     def show_solve_state(self, text: str, color: str = "#c6ccd4") -> None:
         self.solve_state.setText(f'<span style="color:{color}">{text}</span>')
+
+
+def _role(axes: np.ndarray, moved: bool, held: bool) -> tuple[str, str]:
+    """The colour and the words of one node's role (``axes``: its (3,) fixed axes)."""
+    if moved:
+        return style.MOVED, "moved by you: fixed until unpinned"
+    if axes.all():
+        return style.PINNED, "pinned"
+    if axes.any():
+        words = f"pinned on {axes_words(axes)} only: the solver moves it in {axes_words(~axes)}"
+        return style.AXIS_PINNED, words
+    if held:
+        return style.HELD, "free, held for now so the model does not drift (Hold far side)"
+    return style.FREE, "free: the solver moves it"

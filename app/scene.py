@@ -74,7 +74,7 @@ class Scene:
         """(2, 3) lowest and highest corner of the model as drawn."""
         return np.asarray(self._model.bounds).reshape(3, 2).T
 
-    def build(self, surface, nodes: np.ndarray, pinned, moved) -> None:
+    def build(self, surface, nodes: np.ndarray, pin_axes, moved, held=None) -> None:
         """Replace every actor for a new model or lattice (not called per frame)."""
         p = self.plotter
         for actor in self.actors.values():
@@ -101,11 +101,15 @@ class Scene:
         self._shading = Shading(faces, len(points))
         self._faces = faces
         model = pv.PolyData(points, _cells(faces))  # normals: set_smooth below
+        # per-vertex colours: the clay, and the folded part of a result (set_folds)
+        model.point_data["colors"] = np.tile(_rgb(style.MODEL), (len(points), 1))
+        self.folded = 0  #: how many vertices are marked folded
         self.volume = signed_volume(points, faces)
         self._model = model
         self.actors["model"] = p.add_mesh(
             model,
-            color=style.MODEL,
+            scalars="colors",
+            rgb=True,
             smooth_shading=False,
             specular=0.25,
             specular_power=20,
@@ -177,7 +181,7 @@ class Scene:
         )
         self.actors["guide"].SetVisibility(False)
 
-        self.set_flags(pinned, moved)
+        self.set_roles(pin_axes, moved, held)
         self.set_smooth(self.smooth)
         self._apply_visibility()
 
@@ -194,13 +198,41 @@ class Scene:
                 self._model.point_data["Normals"][:] = self._shading(points)
         self._update_selection()
 
-    def set_flags(self, pinned: np.ndarray, moved: np.ndarray) -> None:
-        """Colour the nodes by role: free, pinned, moved."""
-        rgb = np.empty((len(pinned), 3), dtype=np.uint8)
+    def set_roles(self, pin_axes: np.ndarray, moved: np.ndarray, held=None) -> None:
+        """Colour the nodes by role: free, held by the far-side anchor, pinned on some
+        axes, pinned, moved. ``pin_axes`` is (n, 3) bool (or (n,): all axes)."""
+        moved = np.asarray(moved, bool)
+        pins = np.asarray(pin_axes, bool).reshape(len(moved), -1)
+        rgb = np.empty((len(moved), 3), dtype=np.uint8)
         rgb[:] = _rgb(style.FREE)
-        rgb[np.asarray(pinned, bool)] = _rgb(style.PINNED)
-        rgb[np.asarray(moved, bool)] = _rgb(style.MOVED)
+        if held is not None:
+            rgb[np.asarray(held, bool)] = _rgb(style.HELD)
+        rgb[pins.any(axis=1)] = _rgb(style.AXIS_PINNED)
+        rgb[pins.all(axis=1)] = _rgb(style.PINNED)
+        rgb[moved] = _rgb(style.MOVED)
         self._nodes_poly.point_data["rgb"][:] = rgb
+
+    def node_colours(self) -> np.ndarray:
+        """(n, 3) uint8: each node's colour as drawn."""
+        return np.array(self._nodes_poly.point_data["rgb"])
+
+    def set_folds(self, vertices: np.ndarray | None) -> None:
+        """Mark the folded vertices of the model (a (m,) bool mask over the full mesh's
+        vertices), or clear the marks (None)."""
+        colors = self._model.point_data["colors"]
+        mask = None if vertices is None else np.asarray(vertices, bool)
+        count = 0 if mask is None else int(mask.sum())
+        if count == 0 and self.folded == 0:
+            return
+        colors[:] = _rgb(style.MODEL)
+        if count:
+            colors[mask] = _rgb(style.FOLDED)
+        self.folded = count
+        self._model.Modified()
+
+    def model_colours(self) -> np.ndarray:
+        """(m, 3) uint8: each model vertex's colour as drawn."""
+        return np.array(self._model.point_data["colors"])
 
     def set_selection(self, rows) -> None:
         self.selection = np.asarray(rows, dtype=int)

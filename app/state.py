@@ -1,20 +1,26 @@
 """The editable states and what a solve says about them (Qt-free).
 
 A :class:`DocState` is one complete state the user edits: the problem (model pyramid +
-lattice), the node positions, which nodes are pinned and which were placed by the user, the
-target volume, and, once a solve ended on exactly this state, its :class:`SolveSummary`. A
-result's summary belongs to the state it solved: a state made by an edit has none, so the
-statistics of another state can never stay on screen. :class:`StateCell` is the mutable box
-undo works on; :func:`describe_status` is what the status bar says about a state.
+lattice), the node positions, which node coordinates are pinned and which nodes were placed
+by the user, what the solve must hold (the target volume and the rest of the
+:class:`~isochor.core.constraints.Goal`), and, once a solve ended on exactly this state, its
+:class:`SolveSummary`. A result's summary belongs to the state it solved: a state made by an
+edit has none, so the statistics of another state can never stay on screen.
+:class:`StateCell` is the mutable box undo works on; :func:`describe_status` is what the
+status bar says about a state, the ``*_sentence`` functions what the Solve panel adds.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..core.constraints import Goal
 from ..core.problem import Problem
+from ..core.records import BodyVolume
+
+AXES = "xyz"
 
 
 def _ro(a, dtype=None) -> np.ndarray:
@@ -23,9 +29,27 @@ def _ro(a, dtype=None) -> np.ndarray:
     return a
 
 
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """``a`` (a fresh array) made read-only: a view of a state is no way to edit it."""
+    a.flags.writeable = False
+    return a
+
+
 def plural(n: int, word: str = "node") -> str:
     """``"1 node"``, ``"3 nodes"``."""
     return f"{n} {word}{'' if n == 1 else 's'}"
+
+
+def axes_words(mask) -> str:
+    """``"z"``, ``"x and y"``, ``"x, y and z"`` for a (3,) bool mask of axes."""
+    names = [a for a, on in zip(AXES, mask) if on]
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def percent(fraction: float) -> str:
+    """``"3.2%"``, ``"51%"``, ``"0.18%"``: two significant digits, never an exponent."""
+    p = 100.0 * float(fraction)
+    return f"{p:.0f}%" if p >= 10 else f"{p:.2g}%"
 
 
 @dataclass(frozen=True)
@@ -41,6 +65,13 @@ class SolveSummary:
     sigma: float = 0.0
     lam: float = 0.0
     elapsed: float = 0.0
+    held: tuple[int, ...] = ()  #: node rows the far-side anchor held
+    held_face: str = ""  #: which lattice face they are ("x max", ...), "" for none
+    #: :class:`isochor.core.folds.Folds` of the result (its ``vertices`` mask is over the
+    #: full mesh's vertices), None when unknown
+    folds: object | None = field(default=None, compare=False, repr=False)
+    bodies: tuple[BodyVolume, ...] = ()  #: per body, when the model has several
+    centroid_shift: float | None = None  #: |C - C0| / size, with keep_centroid
 
     @classmethod
     def of(cls, result, n_levels: int) -> SolveSummary:
@@ -55,7 +86,22 @@ class SolveSummary:
             float(result.sigma),
             float(result.lam),
             float(result.elapsed),
+            tuple(int(r) for r in result.held),
+            result.held_face,
+            result.folds,
+            tuple(result.bodies),
+            result.centroid_shift,
         )
+
+    @property
+    def folded(self) -> bool:
+        """Part of the model is turned inside out."""
+        return self.folds is not None and bool(self.folds.folded)
+
+    @property
+    def folded_vertices(self) -> np.ndarray | None:
+        """(m,) bool over the full mesh's vertices: the folded ones (None: not folded)."""
+        return np.asarray(self.folds.vertices, dtype=bool) if self.folded else None
 
     @classmethod
     def failed(cls, message: str) -> SolveSummary:
@@ -70,28 +116,78 @@ class SolveSummary:
         return f"Solved {what} of {self.n_levels}"
 
 
+#: the goal's settings a state carries besides the target ratio, with their defaults
+GOAL_SETTINGS = {
+    "preserve": "total",
+    "keep_centroid": False,
+    "anchor": "far-side",
+    "fold_guard": True,
+}
+
+
 @dataclass(frozen=True, eq=False)
 class DocState:
-    """One complete editable state. Arrays are read-only copies."""
+    """One complete editable state. Arrays are read-only copies.
+
+    ``pin_axes`` says which coordinates of each node the user pinned (at any position): a
+    node pinned on z keeps its z and the solver moves it in x and y. Given an (n,) mask, a
+    node is pinned on all three axes. A moved node is fixed on all three.
+
+    ``preserve``, ``keep_centroid``, ``anchor`` and ``fold_guard`` are the goal's (see
+    :class:`~isochor.core.constraints.Goal`); ``preserve`` is "total" or "per-body", not
+    the window's "Preserve volume" switch (``Document.preserve``).
+    """
 
     problem: Problem
     nodes: np.ndarray  #: (n, 3) node positions
-    pinned: np.ndarray  #: (n,) bool, pinned by the user (at any position)
+    pin_axes: np.ndarray  #: (n, 3) bool, the coordinates pinned by the user
     moved: np.ndarray  #: (n,) bool, placed by the user; fixed until unpinned
     target_ratio: float = 1.0
     solved: bool = False  #: the solver ran to its end on exactly these nodes and flags
     result: SolveSummary | None = None  #: the summary of that solve (None: at rest)
+    preserve: str = "total"
+    keep_centroid: bool = False
+    anchor: str = "far-side"
+    fold_guard: bool = True
 
     def __post_init__(self) -> None:
         n = self.problem.surface.lattice.n_nodes
         object.__setattr__(self, "nodes", _ro(np.reshape(self.nodes, (n, 3)), np.float64))
-        object.__setattr__(self, "pinned", _ro(np.reshape(self.pinned, n), bool))
+        pins = np.asarray(self.pin_axes, dtype=bool)
+        pins = np.repeat(pins.reshape(n, 1), 3, axis=1) if pins.size == n else pins
+        object.__setattr__(self, "pin_axes", _ro(np.reshape(pins, (n, 3)), bool))
         object.__setattr__(self, "moved", _ro(np.reshape(self.moved, n), bool))
 
     @property
+    def pinned(self) -> np.ndarray:
+        """(n,) bool: pinned on at least one axis."""
+        return _frozen(self.pin_axes.any(axis=1))
+
+    @property
+    def axis_pinned(self) -> np.ndarray:
+        """(n,) bool: pinned on some axes but not all, and not moved (free on the others)."""
+        return _frozen(self.pinned & ~self.pin_axes.all(axis=1) & ~self.moved)
+
+    @property
     def fixed(self) -> np.ndarray:
-        """(n,) bool: nodes the solver may not move (pinned or moved)."""
-        return self.pinned | self.moved
+        """(n,) bool: nodes the solver may not move freely (pinned on any axis, or moved)."""
+        return _frozen(self.pinned | self.moved)
+
+    @property
+    def fixed_axes(self) -> np.ndarray:
+        """(n, 3) bool: the coordinates the solver may not move (pinned, or moved)."""
+        return _frozen(self.pin_axes | self.moved[:, None])
+
+    @property
+    def goal(self) -> Goal:
+        """What the solve of this state must hold."""
+        return Goal(
+            self.target_ratio, self.preserve, self.keep_centroid, self.anchor, self.fold_guard
+        )
+
+    def settings(self) -> dict:
+        """The goal's settings besides the target, as keyword arguments."""
+        return {k: getattr(self, k) for k in GOAL_SETTINGS}
 
     @property
     def surface(self):
@@ -119,21 +215,32 @@ class DocState:
         return self.edited(nodes=nodes, moved=moved)
 
     def pinned_as(self, rows, pin: bool) -> DocState:
-        """Pin ``rows``, or unpin them (which also clears their moved flag)."""
+        """Pin ``rows`` on every axis, or unpin them (which also clears their moved flag)."""
         rows = np.asarray(rows, dtype=int)
-        pinned, moved = self.pinned.copy(), self.moved.copy()
-        pinned[rows] = pin
+        pins, moved = self.pin_axes.copy(), self.moved.copy()
+        pins[rows] = pin
         if not pin:
             moved[rows] = False
-        return self.edited(pinned=pinned, moved=moved)
+        return self.edited(pin_axes=pins, moved=moved)
+
+    def pinned_on(self, rows, axes) -> DocState:
+        """Pin ``rows`` on exactly ``axes`` ((3,) or (k, 3) bool): a moved node restricted
+        to fewer than three axes is moved no more (the solver moves it on the others)."""
+        rows = np.asarray(rows, dtype=int)
+        axes = np.broadcast_to(np.asarray(axes, dtype=bool), (len(rows), 3))
+        pins, moved = self.pin_axes.copy(), self.moved.copy()
+        pins[rows] = axes
+        moved[rows] &= axes.all(axis=1)
+        return self.edited(pin_axes=pins, moved=moved)
 
     def same_edit(self, other: DocState) -> bool:
-        """True when both describe the same edit (nodes, flags, target, problem)."""
+        """True when both describe the same edit (nodes, flags, goal, problem)."""
         return (
             self.problem is other.problem
             and self.target_ratio == other.target_ratio
+            and self.settings() == other.settings()
             and np.array_equal(self.nodes, other.nodes)
-            and np.array_equal(self.pinned, other.pinned)
+            and np.array_equal(self.pin_axes, other.pin_axes)
             and np.array_equal(self.moved, other.moved)
         )
 
@@ -155,14 +262,19 @@ def initial_state(problem: Problem) -> DocState:
     sc = problem.scenario
     lat = problem.surface.lattice
     moved = np.zeros(lat.n_nodes, dtype=bool)
-    pinned = np.zeros(lat.n_nodes, dtype=bool)
+    pins = np.zeros((lat.n_nodes, 3), dtype=bool)
     for mv in sc.moves:
         moved[lat.index(*mv.node)] = True
     for p in sc.pins:
-        pinned[lat.index(*p)] = True
+        pins[lat.index(*p)] = True
+    for p, axes in sc.axis_pins:
+        pins[lat.index(*p), [AXES.index(a) for a in axes]] = True
     # Nothing moved and the volume kept: the rest lattice is already the answer.
     at_rest = not moved.any() and sc.target_volume_ratio == 1.0
-    return DocState(problem, problem.nodes, pinned, moved, sc.target_volume_ratio, solved=at_rest)
+    settings = {k: getattr(sc, k) for k in GOAL_SETTINGS}
+    return DocState(
+        problem, problem.nodes, pins, moved, sc.target_volume_ratio, solved=at_rest, **settings
+    )
 
 
 def describe_status(state: DocState, *, preserve: bool, activity: str) -> tuple[str, str, str]:
@@ -179,6 +291,8 @@ def describe_status(state: DocState, *, preserve: bool, activity: str) -> tuple[
     if activity == "solving":
         return "Solving…", "busy", "Solving…"
     r = state.result
+    if activity != "failed" and state.solved and r is not None and r.folded:
+        return "Folded", "bad", fold_sentence(r.folds.fraction)
     if activity == "failed" or (state.solved and r is not None and not r.converged):
         return (
             "Not converged" if activity != "failed" else "Solver failed",
@@ -197,3 +311,38 @@ def describe_status(state: DocState, *, preserve: bool, activity: str) -> tuple[
         f"Converged: |dV|/V0 = {abs(r.rel_volume_error):.1e} on the full mesh, "
         f"{plural(r.free_nodes, 'free node')}.",
     )
+
+
+def fold_sentence(fraction: float) -> str:
+    """What a folded result means and what to do about it."""
+    return (
+        f"Folded: {percent(fraction)} of the model is inside out — undo, pin fewer nodes "
+        "or move less."
+    )
+
+
+def held_sentence(count: int, face: str) -> str:
+    """What the far-side anchor holds ("" when nothing)."""
+    if not count or not face:
+        return ""
+    return (
+        f"Holding the {face} face ({plural(count)}) so the model does not drift — "
+        "untick Hold far side to let it move."
+    )
+
+
+def bodies_sentence(bodies) -> str:
+    """Each body's final volume over its original, when there are several ("" else)."""
+    if len(bodies) < 2:
+        return ""
+    parts = [f"body {n} {100 * b.final / b.original:.2f} %" for n, b in enumerate(bodies, 1)]
+    return "Volume of each body: " + " · ".join(parts)
+
+
+def centroid_sentence(shift: float | None) -> str:
+    """How far the centre of mass moved ("" when it was not kept)."""
+    if shift is None:
+        return ""
+    pct = 100 * float(shift)
+    amount = "less than 0.001 %" if pct < 0.001 else f"{pct:.3f} %"
+    return f"Centre of mass moved {amount} of the model's size."

@@ -9,11 +9,14 @@ from __future__ import annotations
 #: Okabe-Ito colours by node role.
 FREE = "#56B4E9"  # sky blue: the solver may move it
 PINNED = "#D55E00"  # vermillion: stays where it is
+AXIS_PINNED = "#CC79A7"  # reddish purple: pinned on some axes, free on the others
 MOVED = "#E69F00"  # orange: placed by the user, fixed until unpinned
+HELD = "#009E73"  # bluish green: held by the solver so the model does not drift
 SELECTED = "#F0E442"  # yellow, drawn larger
 GUIDE = "#CC79A7"  # reddish purple: axis-lock guide line
 
 MODEL = "#d8d2c4"  # warm clay
+FOLDED = "#ff2d55"  # the part of the model a result turned inside out
 GHOST = "#9fb3c8"
 SPRING_AXIS = "#8b95a5"
 SPRING_DIAGONAL = "#4d5563"
@@ -37,13 +40,10 @@ def legend_html() -> str:
         size = "15px" if big else "13px"
         return f'<span style="color:{color}; font-size:{size}">&#9679;</span>&nbsp;{label}'
 
-    rows = [
-        dot(FREE, "free"),
-        dot(PINNED, "pinned"),
-        dot(MOVED, "moved (fixed)"),
-        dot(SELECTED, "selected", True),
-    ]
-    return "&nbsp;&nbsp;&nbsp;".join(rows)
+    gap = "&nbsp;&nbsp;&nbsp;"
+    first = [dot(FREE, "free"), dot(PINNED, "pinned"), dot(MOVED, "moved (fixed)")]
+    second = [dot(AXIS_PINNED, "pinned on some axes"), dot(HELD, "held (far side)")]
+    return gap.join(first) + "<br>" + gap.join([*second, dot(SELECTED, "selected", True)])
 
 
 def apply_dark_theme(app) -> None:

@@ -103,13 +103,13 @@ class Viewport(CameraMixin, QtInteractor):
         return self.scene.volume
 
     def set_scene(
-        self, surface, nodes, pinned, moved, *, up: str = "z", reset_camera: bool = True
+        self, surface, nodes, pin_axes, moved, *, up: str = "z", reset_camera: bool = True
     ) -> None:
         """Build the actors of a model in a lattice; ``reset_camera`` frames it."""
         self._size = float(surface.size)
         self._up = AXES[up]
         self._drag = None
-        self.scene.build(surface, nodes, pinned, moved)
+        self.scene.build(surface, nodes, pin_axes, moved)
         if reset_camera:
             self.home_view()
             # Until the view has its final size its aspect ratio is not known: frame again

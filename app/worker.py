@@ -22,6 +22,7 @@ from collections.abc import Callable
 import numpy as np
 from PySide6.QtCore import QObject, Signal
 
+from ..core.constraints import Goal
 from ..core.errors import IsochorError
 from ..core.multilevel import solve
 from ..core.solver import SolverOptions
@@ -109,17 +110,22 @@ class SolveWorker(QObject):
         nodes: np.ndarray,
         fixed: np.ndarray,
         *,
-        target_ratio: float,
+        goal: Goal | None = None,
+        target_ratio: float = 1.0,
         options: SolverOptions | None = None,
     ) -> int:
-        """Stop the running solve and start a new one; returns its generation id."""
+        """Stop the running solve and start a new one; returns its generation id.
+
+        ``fixed`` is (n,) bool (whole nodes) or (n, 3) bool (coordinates); ``goal`` is what
+        to hold (by default the volume at ``target_ratio``)."""
         self.stop()
         self._generation += 1
         nodes = np.array(nodes, dtype=np.float64)
         fixed = np.array(fixed, dtype=bool)
+        goal = goal if goal is not None else Goal(target_ratio=target_ratio)
 
         def make():
-            return solve(surface, nodes, fixed, target_ratio=target_ratio, options=options)
+            return solve(surface, nodes, fixed, goal=goal, options=options)
 
         job = _Job(self, self._generation, make)
         self._job = job

@@ -661,7 +661,8 @@ def test_drag_fixed_includes_the_dragged_rows(doc):
     doc.select(rows)
     drag = doc.begin_drag()
     fixed = drag.fixed()
-    expect = doc.state.fixed.copy()
+    assert fixed.shape == (27, 3), "per coordinate"
+    expect = doc.state.fixed_axes.copy()
     expect[rows] = True
     np.testing.assert_array_equal(fixed, expect)
     assert not doc.state.fixed[rows].any()  # the state is untouched
@@ -843,7 +844,7 @@ def test_scenario_of_the_current_state(doc):
     for mv, r in zip(sc.moves, moved):
         assert mv.by is None and mv.to == tuple(float(x) for x in st.nodes[r])
         assert all(type(x) is float for x in mv.to)
-    free = np.flatnonzero(~doc.problem.fixed)  # the example's free nodes
+    free = np.flatnonzero(~doc.problem.fixed.any(axis=1))  # the example's free nodes
     assert sc.pins == (lat.ijk(int(free[1])),)  # not node 0: it is moved
     assert st.pinned[0]
     assert sc.target_volume_ratio == pytest.approx(0.95)
@@ -1017,3 +1018,316 @@ def test_the_document_runs_without_qt():
     assert out.returncode == 0, out.stderr
     assert out.stdout.splitlines()[0] == "Edited"
     assert gui == [], f"imported: {gui}"
+
+
+# -- the goal's settings, pins on some axes, what is held (issue 11) --------------------------
+GOAL_SPHERE = {
+    **SPHERE,
+    "version": 2,
+    "pins": [[0, 0, 0], {"node": [1, 1, 2], "axes": "z"}, {"node": [2, 0, 1], "axes": "xy"}],
+    "preserve": "per-body",
+    "keep_centroid": True,
+    "anchor": "none",
+    "fold_guard": False,
+}
+
+
+def test_initial_state_reads_axis_pins_and_the_goal():
+    prob = build(Scenario.from_dict(GOAL_SPHERE))
+    st = initial_state(prob)
+    lat = st.lattice
+    z_only, xy, full = lat.index(1, 1, 2), lat.index(2, 0, 1), lat.index(0, 0, 0)
+    assert st.pin_axes.shape == (27, 3)
+    assert st.pin_axes[z_only].tolist() == [False, False, True]
+    assert st.pin_axes[xy].tolist() == [True, True, False]
+    assert st.pin_axes[full].all()
+    assert np.flatnonzero(st.pinned).tolist() == sorted([full, z_only, xy])
+    assert np.flatnonzero(st.axis_pinned).tolist() == sorted([z_only, xy])
+    np.testing.assert_array_equal(st.fixed_axes, prob.fixed)  # what the core would hold
+    assert st.settings() == {
+        "preserve": "per-body",
+        "keep_centroid": True,
+        "anchor": "none",
+        "fold_guard": False,
+    }
+    assert st.goal == prob.scenario.goal
+    for a in (st.pin_axes, st.pinned, st.axis_pinned, st.fixed, st.fixed_axes):
+        assert not a.flags.writeable
+
+
+def test_a_plain_state_has_the_default_goal(doc):
+    st = doc.state
+    assert st.goal.anchor == "far-side" and st.goal.fold_guard and not st.goal.keep_centroid
+    assert st.goal.preserve == "total" and st.goal.target_ratio == 1.0
+    assert st.pin_axes.shape == (27, 3) and not st.pin_axes.any()
+    np.testing.assert_array_equal(st.fixed_axes, np.repeat(st.moved[:, None], 3, axis=1))
+
+
+@pytest.mark.parametrize(
+    ("rule", "value", "setting", "new", "words"),
+    [
+        ("edit_anchor", False, "anchor", "none", "Hold far side off"),
+        ("edit_keep_centroid", True, "keep_centroid", True, "Keep centre of mass"),
+        ("edit_preserve", "per-body", "preserve", "per-body", "Preserve each body"),
+        ("edit_fold_guard", False, "fold_guard", False, "Fold guard off"),
+    ],
+)
+def test_each_goal_setting_is_an_undoable_edit_with_words(doc, rule, value, setting, new, words):
+    before = doc.cell
+    old = getattr(doc.state, setting)
+    edit = getattr(doc, rule)(value)
+    assert_fresh(edit)
+    assert edit.text == words
+    assert getattr(edit.state, setting) == new and getattr(edit.state.goal, setting) == new
+    np.testing.assert_array_equal(edit.state.nodes, doc.base_nodes())
+    assert not edit.state.same_edit(doc.state), "a setting makes another edit"
+    after = commit(doc, edit)
+    assert doc.needs_solve()
+    assert getattr(doc, rule)(value) is None, "the same value again: nothing to do"
+    doc.set_cell(before)  # undo
+    assert getattr(doc.state, setting) == old
+    doc.set_cell(after)  # redo
+    assert getattr(doc.state, setting) == new
+    back = {"edit_anchor": True, "edit_preserve": "total"}.get(rule, not value)
+    assert getattr(doc, rule)(back).text != words  # the words of the way back
+
+
+def test_goal_settings_refuse_unknown_values(doc):
+    with pytest.raises(IsochorError, match="preserve"):
+        doc.edit_preserve("each")
+    with pytest.raises(IsochorError, match="anchor"):
+        doc.edit_setting("anchor", "middle")
+    with pytest.raises(ValueError, match="unknown goal setting"):
+        doc.edit_setting("target_ratio", 0.5)
+
+
+def test_edit_target_beyond_the_reachable_range_says_so(rest):
+    with pytest.raises(IsochorError, match=r"0\.05\.\.20"):
+        rest.edit_target(2)
+    with pytest.raises(IsochorError, match=r"0\.05\.\.20"):
+        rest.edit_target(2500)
+    assert rest.edit_target(5).state.target_ratio == pytest.approx(0.05)
+
+
+def test_edit_pin_axes_pins_some_axes_only(doc):
+    r = int(free_rows(doc)[0])
+    edit = doc.edit_pin_axes([r], "z")
+    assert_fresh(edit)
+    assert edit.text == "Pin 1 node on z"
+    st = edit.state
+    assert st.pin_axes[r].tolist() == [False, False, True]
+    assert st.pinned[r] and st.axis_pinned[r] and st.fixed[r] and not st.moved[r]
+    assert st.fixed_axes[r].tolist() == [False, False, True]
+    commit(doc, edit)
+    assert doc.edit_pin_axes([r], "z") is None
+    assert doc.edit_pin_axes([r], "yx").text == "Pin 1 node on x and y"
+    assert doc.edit_pin_axes([r], "xyz").text == "Pin 1 node"
+    unpin = doc.edit_pin_axes([r], "")
+    assert unpin.text == "Unpin 1 node" and not unpin.state.fixed[r]
+    assert doc.edit_pin_axes([], "z") is None
+    with pytest.raises(ValueError, match="xyz"):
+        doc.edit_pin_axes([r], "w")
+    # P pins every axis of a node pinned on some, and unpins it when all are fixed
+    doc.select([r])
+    assert doc.edit_pins([r], True).state.pin_axes[r].all()
+    assert doc.edit_toggle_pin().text == "Unpin 1 node"
+
+
+def test_pinning_a_moved_node_on_some_axes_frees_the_others(doc):
+    moved = int(np.flatnonzero(doc.state.moved)[0])
+    edit = doc.edit_pin_axes([moved], "z")
+    assert edit.text == "Pin 1 node on z"
+    assert not edit.state.moved[moved] and edit.state.axis_pinned[moved]
+    np.testing.assert_array_equal(edit.state.nodes[moved], doc.state.nodes[moved])
+    assert doc.edit_pin_axes([moved], "xyz") is None, "a moved node is fixed on every axis"
+
+
+def test_edit_pin_axis_turns_one_axis_of_the_selection(doc):
+    a, b = (int(r) for r in free_rows(doc)[:2])
+    commit(doc, doc.edit_pin_axes([a], "x"))
+    edit = doc.edit_pin_axis([a, b], 2, True)
+    assert edit.text == "Pin 2 nodes on z"
+    assert edit.state.pin_axes[a].tolist() == [True, False, True]
+    assert edit.state.pin_axes[b].tolist() == [False, False, True]
+    commit(doc, edit)
+    assert doc.edit_pin_axis([a, b], 2, True) is None
+    free = doc.edit_pin_axis([a], 0, False)
+    assert free.text == "Free 1 node on x" and free.state.pin_axes[a].tolist() == [0, 0, 1]
+    assert doc.edit_pin_axis([b], 1, False) is None, "not pinned on y: nothing to free"
+    moved = int(np.flatnonzero(doc.state.moved)[0])
+    edit = doc.edit_pin_axis([moved], 1, False)
+    assert edit.text == "Free 1 node on y" and not edit.state.moved[moved]
+    assert edit.state.pin_axes[moved].tolist() == [True, False, True]
+
+
+def test_drag_and_plain_ffd_hold_pinned_coordinates_only(doc):
+    r = int(free_rows(doc)[0])
+    commit(doc, doc.edit_pin_axes([r], "z"))
+    other = int(free_rows(doc)[0])
+    doc.select([other])
+    fixed = doc.begin_drag().fixed()
+    assert fixed[r].tolist() == [False, False, True] and fixed[other].all()
+    doc.cancel_drag()
+    solved = doc.state.nodes + 0.1
+    doc.record_result(doc.cell, solved, summary())
+    doc.preserve = False
+    rest = doc.state.lattice.rest_nodes
+    view = doc.view_nodes()
+    np.testing.assert_allclose(view[r], [rest[r, 0], rest[r, 1], solved[r, 2]])
+
+
+def test_held_is_the_far_face_of_a_move_on_a_fresh_lattice(rest):
+    lat = rest.state.lattice
+    assert rest.held()[1] == "", "nothing moved: nothing held"
+    corner = lat.index(2, 2, 2)
+    rest.select([corner])
+    commit(rest, rest.edit_position(0, float(rest.state.nodes[corner, 0]) + 0.3))
+    mask, face = rest.held()
+    assert face == "x min" and mask.sum() == 9
+    assert all(lat.ijk(r)[0] == 0 for r in np.flatnonzero(mask))
+    # what a drag would hold, before it is solved
+    rest.select([lat.index(0, 0, 0)])
+    drag = rest.begin_drag()
+    drag.move([0.0, 0.0, -0.2])
+    assert rest.held()[1] == "", "two moved corners: no face is free of them"
+    rest.cancel_drag()
+    # no anchor, or no volume constraint: nothing held
+    commit(rest, rest.edit_anchor(False))
+    assert rest.held()[1] == "" and not rest.held()[0].any()
+    rest.set_cell(StateCell(rest.edit_anchor(True).state))
+    rest.preserve = False
+    assert rest.held()[1] == ""
+
+
+def test_a_solve_summary_keeps_what_the_window_shows(rest):
+    """Held rows and face, folds, bodies and the centroid of a real solve; held() of a
+    solved state is what its solve held."""
+    lat = rest.state.lattice
+    corner = lat.index(2, 2, 2)
+    rest.select([corner])
+    commit(rest, rest.edit_keep_centroid(True))
+    commit(rest, rest.edit_position(0, float(rest.state.nodes[corner, 0]) + 0.3))
+    st = rest.state
+    result = run_to_end(
+        solve(st.surface, st.nodes, st.fixed_axes, goal=st.goal, options=st.problem.options)
+    )
+    s = SolveSummary.of(result, len(st.surface.levels))
+    assert s.held == tuple(result.held) and len(s.held) == 9 and s.held_face == "x min"
+    assert s.folds is result.folds and not s.folded and s.folded_vertices is None
+    assert s.centroid_shift == result.centroid_shift and s.centroid_shift is not None
+    assert s.bodies == ()  # one body
+    rest.record_result(rest.cell, result.nodes, s)
+    mask, face = rest.held()
+    assert face == "x min" and np.flatnonzero(mask).tolist() == list(s.held)
+    assert s == replace(s, folds=None), "summaries compare without their folds"
+
+
+def test_a_folded_result_says_so(doc):
+    from isochor.core.folds import Folds
+
+    mask = np.zeros(10, bool)
+    mask[:3] = True
+    folds = Folds(0.032, 0.3, 0.01, -0.5, mask)
+    r = summary(converged=False, message="the result is folded", folds=folds)
+    st = replace(doc.state, solved=True, result=r)
+    assert r.folded and r.folded_vertices.tolist() == mask.tolist()
+    assert describe_status(st, preserve=True, activity="idle") == (
+        "Folded",
+        "bad",
+        "Folded: 3.2% of the model is inside out — undo, pin fewer nodes or move less.",
+    )
+    assert describe_status(st, preserve=True, activity="dragging")[0] == "Dragging"
+    assert describe_status(st, preserve=False, activity="idle")[0] == "Plain FFD"
+    flat = Folds(0.0, 0.0, 0.0, 0.5, np.zeros(10, bool))
+    ok = replace(st, result=summary(folds=flat))
+    assert not ok.result.folded and describe_status(ok, preserve=True, activity="idle")[0] == (
+        "Converged"
+    )
+
+
+def test_the_sentences_of_the_goal():
+    from isochor.app.state import (
+        bodies_sentence,
+        centroid_sentence,
+        fold_sentence,
+        held_sentence,
+        percent,
+    )
+    from isochor.core.records import BodyVolume
+
+    assert held_sentence(9, "x max") == (
+        "Holding the x max face (9 nodes) so the model does not drift — untick Hold far "
+        "side to let it move."
+    )
+    assert held_sentence(0, "") == "" and held_sentence(9, "") == ""
+    assert [percent(f) for f in (0.032, 0.511, 1.0, 0.00181)] == ["3.2%", "51%", "100%", "0.18%"]
+    assert fold_sentence(0.511).startswith("Folded: 51% of the model is inside out")
+    two = (BodyVolume(2.0, 2.0, 2.0), BodyVolume(1.0, 1.0, 0.97))
+    assert bodies_sentence(two) == "Volume of each body: body 1 100.00 % · body 2 97.00 %"
+    assert bodies_sentence(two[:1]) == ""
+    assert centroid_sentence(None) == ""
+    assert centroid_sentence(0.0123) == "Centre of mass moved 1.230 % of the model's size."
+    assert centroid_sentence(1e-9) == (
+        "Centre of mass moved less than 0.001 % of the model's size."
+    )
+
+
+def test_reset_and_rebuild_keep_the_goal_and_drop_axis_pins(doc):
+    commit(doc, doc.edit_anchor(False))
+    commit(doc, doc.edit_pin_axes(free_rows(doc)[:1], "z"))
+    reset = doc.edit_reset().state
+    assert not reset.pin_axes.any() and reset.anchor == "none"
+    rebuilt = doc.edit_lattice((4, 3, 3)).state
+    assert not rebuilt.pin_axes.any() and rebuilt.anchor == "none"
+    assert rebuilt.problem.scenario.axis_pins == ()
+
+
+def test_save_writes_version_2_with_axis_pins_and_the_goal(doc, tmp_path):
+    z_only, xy = (int(r) for r in free_rows(doc)[:2])
+    commit(doc, doc.edit_pin_axes([z_only], "z"))
+    commit(doc, doc.edit_pin_axes([xy], "xy"))
+    commit(doc, doc.edit_pins(free_rows(doc)[:1], True))
+    commit(doc, doc.edit_anchor(False))
+    commit(doc, doc.edit_keep_centroid(True))
+    commit(doc, doc.edit_fold_guard(False))
+    commit(doc, doc.edit_preserve("per-body"))
+    lat = doc.state.lattice
+    sc = doc.scenario()
+    assert sc.version == 2
+    assert sc.axis_pins == ((lat.ijk(z_only), "z"), (lat.ijk(xy), "xy"))
+    assert len(sc.pins) == 1
+    path = tmp_path / "goal.json"
+    doc.save(path)
+    raw = json.loads(path.read_text())
+    assert raw["version"] == 2
+    assert {"node": list(lat.ijk(z_only)), "axes": "z"} in raw["pins"]
+    assert (raw["preserve"], raw["keep_centroid"], raw["anchor"], raw["fold_guard"]) == (
+        "per-body",
+        True,
+        "none",
+        False,
+    )
+    again = Document.open(path).state
+    st = doc.state
+    np.testing.assert_array_equal(
+        again.pin_axes & ~again.moved[:, None], st.pin_axes & ~st.moved[:, None]
+    )
+    np.testing.assert_array_equal(again.moved, st.moved)
+    assert again.settings() == st.settings() and again.goal == st.goal
+
+
+def test_save_without_the_new_settings_writes_version_1_and_version_1_opens(doc, tmp_path):
+    path = tmp_path / "plain.json"
+    commit(doc, doc.edit_pins(free_rows(doc)[:1], True))
+    doc.save(path)
+    raw = json.loads(path.read_text())
+    assert raw["version"] == 1 and "anchor" not in raw and "preserve" not in raw
+    assert all(isinstance(p, list) for p in raw["pins"])
+    opened = Document.open(path).state
+    assert opened.settings() == {
+        "preserve": "total",
+        "keep_centroid": False,
+        "anchor": "far-side",
+        "fold_guard": True,
+    }
+    assert not opened.axis_pinned.any() and opened.pinned.sum() == 1

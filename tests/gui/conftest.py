@@ -109,3 +109,21 @@ def run_cli(args, timeout=120):
         check=False,
     )
     return proc, time.perf_counter() - t0
+
+
+def save_shot(win, name: str, show=None) -> None:
+    """A PNG of the whole window in $ISOCHOR_SHOTS (when set), to look at by eye; ``show``:
+    a widget of the Inspector to scroll into view first."""
+    folder = os.environ.get("ISOCHOR_SHOTS")
+    if not folder:
+        return
+    from PySide6.QtTest import QTest
+
+    from isochor.app.launch import save_window_png
+
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    if show is not None:
+        win.inspector_scroll.ensureWidgetVisible(show)
+    win.session.flush()
+    QTest.qWait(150)  # the layouts of what the last state changed settle
+    save_window_png(win, Path(folder) / f"{name}.png")

@@ -212,12 +212,11 @@ def test_two_quick_drags_end_on_the_headless_solve_of_the_last(qtbot, window):
     assert gens == sorted(gens)
     assert log[-1] == (g2, "finished")
 
-    nodes, fixed, target = win.session.last_solve_input
-    assert fixed[r1] and fixed[r2]
+    nodes, fixed, goal = win.session.last_solve_input
+    assert fixed.shape == (len(nodes), 3) and fixed[r1].all() and fixed[r2].all()
+    assert goal == win.state.goal
     st = win.state
-    headless = run_to_end(
-        solve(st.surface, nodes, fixed, target_ratio=target, options=st.problem.options)
-    )
+    headless = run_to_end(solve(st.surface, nodes, fixed, goal=goal, options=st.problem.options))
     assert np.allclose(win.state.nodes, headless.nodes, rtol=0, atol=1e-9 * st.surface.size)
     assert win.undo_stack.count() == 2
 
