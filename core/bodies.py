@@ -25,6 +25,8 @@ BUDGET = 50_000_000
 SAMPLES = 48
 #: |winding number| above this: inside; below 1 - this: outside; between: on the surface
 INSIDE = 0.75
+#: (point, triangle) pairs per block of the winding numbers
+WINDING_BLOCK = 1 << 16
 
 
 @dataclass(frozen=True)
@@ -131,7 +133,8 @@ def orient(
 
 
 def winding_numbers(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Generalised winding number of each point with respect to a closed triangle set.
+    """Generalised winding number of each point with respect to a closed triangle set
+    (solid angles, Van Oosterom and Strackee 1983), over blocks of points at once.
 
     Parameters
     ----------
@@ -143,16 +146,26 @@ def winding_numbers(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     (p,) about +-1 inside, 0 outside, +-1/2 on the surface (sign = the triangles'
     orientation)
     """
-    out = np.empty(len(points))
-    for i, p in enumerate(points):  # solid angles, Van Oosterom and Strackee (1983)
-        a, b, c = (triangles[:, k] - p for k in range(3))
-        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-        num = np.einsum("ij,ij->i", a, np.cross(b, c))
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    corners = np.ascontiguousarray(np.asarray(triangles, dtype=np.float64).transpose(1, 2, 0))
+    out = np.zeros(len(points))
+    if corners.shape[2] == 0:
+        return out
+    step = max(1, WINDING_BLOCK // corners.shape[2])
+    for s in range(0, len(points), step):
+        p = points[s : s + step]
+        ax, ay, az = (corners[0, c][None] - p[:, c, None] for c in range(3))
+        bx, by, bz = (corners[1, c][None] - p[:, c, None] for c in range(3))
+        cx, cy, cz = (corners[2, c][None] - p[:, c, None] for c in range(3))
+        la = np.sqrt(ax * ax + ay * ay + az * az)
+        lb = np.sqrt(bx * bx + by * by + bz * bz)
+        lc = np.sqrt(cx * cx + cy * cy + cz * cz)
+        num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
         den = (
             la * lb * lc
-            + np.einsum("ij,ij->i", a, b) * lc
-            + np.einsum("ij,ij->i", a, c) * lb
-            + np.einsum("ij,ij->i", b, c) * la
+            + (ax * bx + ay * by + az * bz) * lc
+            + (ax * cx + ay * cy + az * cz) * lb
+            + (bx * cx + by * cy + bz * cz) * la
         )
-        out[i] = np.sum(np.arctan2(num, den)) / (2 * np.pi)
+        out[s : s + step] = np.arctan2(num, den).sum(axis=1) / (2 * np.pi)
     return out

@@ -19,14 +19,13 @@ from math import comb
 
 import numpy as np
 
+from .bodies import winding_numbers
 from .errors import IsochorError
 from .lattice import Lattice
 from .mesh import TriMesh
 
 #: points per block of the blocked determinant evaluation (temporaries stay in cache)
 BLOCK = 4096
-#: (point, triangle) pairs per block of the winding numbers
-WINDING_BLOCK = 1 << 16
 #: |winding number| above this: inside
 INSIDE = 0.5
 #: (point, node) entries per block while building the guard's basis gradients
@@ -67,7 +66,7 @@ def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) 
     inside = empty
     for _ in range(3):  # a thin model fills little of its box: refine until about `count`
         grid = _grid(lo, ext, (box / most) ** (1.0 / 3.0), mesh.n_faces, budget)
-        winding = _winding_numbers(grid, triangles)
+        winding = winding_numbers(grid, triangles)
         inside = np.ascontiguousarray(grid[np.abs(winding) > INSIDE])
         room = int(budget) // mesh.n_faces
         if len(inside) >= count / 2 or len(grid) >= room:
@@ -85,44 +84,6 @@ def _grid(lo: np.ndarray, ext: np.ndarray, spacing: float, faces: int, budget: i
         cells = np.maximum(1, np.rint(ext / spacing)).astype(np.int64)
     axes = [lo[c] + (np.arange(cells[c]) + 0.5) * (ext[c] / cells[c]) for c in range(3)]
     return np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
-
-
-def _winding_numbers(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Generalised winding numbers, as :func:`core.bodies.winding_numbers` (same formula,
-    Van Oosterom and Strackee 1983) but over blocks of points at once: several times faster.
-
-    Parameters
-    ----------
-    points : (p, 3)
-    triangles : (t, 3, 3) corner positions
-
-    Returns
-    -------
-    (p,) about +-1 inside, 0 outside
-    """
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    corners = np.ascontiguousarray(np.asarray(triangles, dtype=np.float64).transpose(1, 2, 0))
-    out = np.zeros(len(points))
-    if corners.shape[2] == 0:
-        return out
-    step = max(1, WINDING_BLOCK // corners.shape[2])
-    for s in range(0, len(points), step):
-        p = points[s : s + step]
-        ax, ay, az = (corners[0, c][None] - p[:, c, None] for c in range(3))
-        bx, by, bz = (corners[1, c][None] - p[:, c, None] for c in range(3))
-        cx, cy, cz = (corners[2, c][None] - p[:, c, None] for c in range(3))
-        la = np.sqrt(ax * ax + ay * ay + az * az)
-        lb = np.sqrt(bx * bx + by * by + bz * bz)
-        lc = np.sqrt(cx * cx + cy * cy + cz * cz)
-        num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
-        den = (
-            la * lb * lc
-            + (ax * bx + ay * by + az * bz) * lc
-            + (ax * cx + ay * cy + az * cz) * lb
-            + (bx * cx + by * cy + bz * cz) * la
-        )
-        out[s : s + step] = np.arctan2(num, den).sum(axis=1) / (2 * np.pi)
-    return out
 
 
 def _bernstein_pair(degree: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -37,6 +37,7 @@ from isochor.core.constraints import RATIO_RANGE
 from isochor.core.defaults import TOL_VOLUME
 from isochor.core.problem import MAX_MOVE, build
 from isochor.core.scenario import Scenario
+from tests import test_contract as contract
 from tests.models import available, model
 
 # -- running the command ----------------------------------------------------------------
@@ -58,19 +59,12 @@ MAX_SAMPLES = 50_000
 
 
 @dataclass(repr=False)
-class Run:
-    argv: list[str]
-    returncode: int | None  # None: killed after the timeout (a hang)
-    stdout: str
-    stderr: str
-    elapsed: float
+class Run(contract.Run):
+    """A contract run with the report it wrote and the tolerance it was solved to."""
+
     tol: float = TOL_VOLUME
     report: dict | None = None
     folder: Path | None = None
-
-    @property
-    def lines(self) -> list[str]:
-        return self.stderr.splitlines()
 
     @property
     def problems(self) -> list[str]:
