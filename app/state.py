@@ -19,6 +19,7 @@ import numpy as np
 from ..core.constraints import Goal
 from ..core.problem import Problem
 from ..core.records import BodyVolume
+from ..core.scenario import GOAL_DEFAULTS
 
 AXES = "xyz"
 
@@ -116,15 +117,6 @@ class SolveSummary:
         return f"Solved {what} of {self.n_levels}"
 
 
-#: the goal's settings a state carries besides the target ratio, with their defaults
-GOAL_SETTINGS = {
-    "preserve": "total",
-    "keep_centroid": False,
-    "anchor": "far-side",
-    "fold_guard": True,
-}
-
-
 @dataclass(frozen=True, eq=False)
 class DocState:
     """One complete editable state. Arrays are read-only copies.
@@ -187,7 +179,7 @@ class DocState:
 
     def settings(self) -> dict:
         """The goal's settings besides the target, as keyword arguments."""
-        return {k: getattr(self, k) for k in GOAL_SETTINGS}
+        return {k: getattr(self, k) for k in GOAL_DEFAULTS}
 
     @property
     def surface(self):
@@ -271,7 +263,7 @@ def initial_state(problem: Problem) -> DocState:
         pins[lat.index(*p), [AXES.index(a) for a in axes]] = True
     # Nothing moved and the volume kept: the rest lattice is already the answer.
     at_rest = not moved.any() and sc.target_volume_ratio == 1.0
-    settings = {k: getattr(sc, k) for k in GOAL_SETTINGS}
+    settings = {k: getattr(sc, k) for k in GOAL_DEFAULTS}
     return DocState(
         problem, problem.nodes, pins, moved, sc.target_volume_ratio, solved=at_rest, **settings
     )
