@@ -25,7 +25,7 @@ discretisation error does not show up as a constraint violation.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -35,7 +35,7 @@ from .errors import IsochorError
 from .lattice import Lattice, PointBasis
 from .mesh import TriMesh
 from .repair import body_labels, compact
-from .volume import MomentOperator, VolumeOperator
+from .volume import MomentOperator, VolumeOperator, face_volumes
 
 PRESERVE = ("total", "per-body")
 ANCHORS = ("far-side", "none")
@@ -98,12 +98,12 @@ class Bodies:
 
     solid_of_shell: np.ndarray  #: (shells,) int
     shell_centers: np.ndarray  #: (shells, 3) mean vertex of each shell, to match levels
+    solid_of_face: np.ndarray  #: (faces,) int, the body of each face of the full mesh
     volumes: np.ndarray  #: (bodies,) rest volume of each body (its shells' sum)
 
     @classmethod
     def of(cls, mesh: TriMesh) -> Bodies:
         labels, n = body_labels(mesh.faces)
-        shells = [compact(mesh.vertices, mesh.faces[labels == s]) for s in range(n)]
         depth = arrange(mesh.vertices, mesh.faces, labels, n).inside
         solid = np.arange(n)
         for s in range(n):  # a cavity (odd depth) belongs to its innermost container
@@ -112,9 +112,18 @@ class Bodies:
                 parents = [p for p in np.flatnonzero(depth[s]) if int(depth[p].sum()) == d - 1]
                 solid[s] = parents[0] if parents else s
         _, solid = np.unique(solid, return_inverse=True)
-        vols = np.array([VolumeOperator(f, len(v))(v, v.mean(axis=0)) for v, f in shells])
-        centers = np.array([v.mean(axis=0) for v, _ in shells])
-        return cls(solid, centers, np.bincount(solid, weights=vols))
+        centers = np.array(
+            [compact(mesh.vertices, mesh.faces[labels == s])[0].mean(axis=0) for s in range(n)]
+        )
+        bodies = cls(solid, centers, solid[labels], np.zeros(0))
+        return replace(bodies, volumes=bodies.measure(mesh.vertices, mesh.faces))
+
+    def measure(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        """(bodies,) volume of each body of the full mesh with these vertex positions."""
+        vols = face_volumes(vertices, faces)
+        return np.bincount(
+            self.solid_of_face, weights=vols, minlength=self.solid_of_shell.max() + 1
+        )
 
     @property
     def count(self) -> int:
@@ -140,6 +149,7 @@ class Level:
         self.volume_op = VolumeOperator(mesh.faces, mesh.n_vertices)
         self._last: tuple[bytes | None, float] = (None, 0.0)
         self._parts: tuple[list[_Part], np.ndarray] | None = None
+        self._rest_bodies: np.ndarray | None = None
         self.rest_volume = self.volume(lattice.rest_nodes)
 
     def volume(self, nodes: np.ndarray) -> float:
@@ -173,6 +183,13 @@ class Level:
         parts, owner = self.parts(bodies)
         vols = [p.op(p.basis.apply(nodes), self.center) for p in parts]
         return np.bincount(owner, weights=vols, minlength=bodies.count)
+
+    def rest_body_volumes(self, bodies: Bodies) -> np.ndarray:
+        """Each body's volume on this level at rest, computed once (every solve's
+        constraints on this level start from it)."""
+        if self._rest_bodies is None:
+            self._rest_bodies = self.body_volumes(self.lattice.rest_nodes, bodies)
+        return self._rest_bodies
 
     @cached_property
     def moment_op(self) -> MomentOperator:
@@ -208,9 +225,8 @@ class Constraints:
     ) -> None:
         self.level, self.goal, self.bodies = level, goal, bodies
         t = goal.target_ratio
-        rest = level.lattice.rest_nodes
         if goal.preserve == "per-body" and bodies is not None:
-            self.targets = t * level.body_volumes(rest, bodies)
+            self.targets = t * level.rest_body_volumes(bodies)
             self.scales = min(1.0, t) * np.abs(bodies.volumes)
         else:
             self.targets = np.array([t * level.rest_volume])

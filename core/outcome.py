@@ -41,7 +41,7 @@ def outcome(
     bodies: tuple[BodyVolume, ...] = ()
     if goal.preserve == "per-body" or surface.bodies.count > 1:
         rest = surface.bodies.volumes
-        final = full.body_volumes(x, surface.bodies)
+        final = surface.bodies.measure(surface.deform(x), surface.full.faces)
         bodies = tuple(
             BodyVolume(float(r), float(goal.target_ratio * r), float(f))
             for r, f in zip(rest, final)
