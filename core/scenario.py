@@ -49,7 +49,20 @@ from .defaults import LATTICE_NODES, PADDING, TOL_NODES, TOL_VOLUME
 from .errors import IsochorError
 from .formats import is_model
 from .lattice import MAX_NODES, MIN_NODES
-from .validate import MAX_COORDINATE, input_file, number, show
+from .validate import (
+    as_list,
+    check_keys,
+    flag,
+    input_file,
+    int_triple,
+    node_index,
+    number,
+    parse_constant,
+    parse_int,
+    show,
+    vec3,
+    word,
+)
 
 FORMAT = "isochor-scenario"
 VERSION = 2
@@ -64,8 +77,6 @@ GOAL_DEFAULTS = {
 
 #: a scenario is a few kilobytes; anything larger than this is not one
 MAX_SCENARIO_BYTES = 16 * 2**20
-#: longest integer literal read (Python refuses more than 4300 digits, and no field needs 20)
-MAX_DIGITS = 100
 #: the tolerances: the range the solver is meant for (the volume ratio's is
 #: :data:`isochor.core.constraints.RATIO_RANGE`)
 TOLERANCE_RANGE = (1e-12, 0.5)
@@ -104,7 +115,7 @@ class Scenario:
     # -- JSON ---------------------------------------------------------------------------
     @classmethod
     def from_dict(cls, doc: Any, base_dir: str | Path | None = None) -> Scenario:
-        _check_keys(
+        check_keys(
             doc,
             "scenario",
             {
@@ -133,11 +144,11 @@ class Scenario:
                 'scenario; set "version": 2'
             )
         model = doc["model"]
-        _check_keys(model, "model", None, set())
+        check_keys(model, "model", None, set())
         if ("path" in model) == ("builtin" in model):
             raise IsochorError("model: give exactly one of 'path' or 'builtin'")
         if "path" in model:
-            _check_keys(model, "model", {"path"}, {"path"})
+            check_keys(model, "model", {"path"}, {"path"})
             if not isinstance(model["path"], str) or not model["path"]:
                 raise IsochorError("model.path: must be a non-empty string")
             if "\0" in model["path"]:
@@ -145,8 +156,8 @@ class Scenario:
         elif not isinstance(model["builtin"], str):
             raise IsochorError("model.builtin: must be a string")
         lat = doc.get("lattice", {})
-        _check_keys(lat, "lattice", {"nodes", "padding", "frame"}, set())
-        shape = _int_triple(lat.get("nodes", list(LATTICE_NODES)), "lattice.nodes")
+        check_keys(lat, "lattice", {"nodes", "padding", "frame"}, set())
+        shape = int_triple(lat.get("nodes", list(LATTICE_NODES)), "lattice.nodes")
         if not all(MIN_NODES <= s <= MAX_NODES for s in shape):
             raise IsochorError(f"lattice.nodes: each axis needs {MIN_NODES} to {MAX_NODES} nodes")
         padding = number(lat.get("padding", PADDING), "lattice.padding")
@@ -157,36 +168,36 @@ class Scenario:
         frame = None
         if "frame" in lat:
             fr = lat["frame"]
-            _check_keys(fr, "lattice.frame", {"origin", "axes"}, {"origin", "axes"})
+            check_keys(fr, "lattice.frame", {"origin", "axes"}, {"origin", "axes"})
             axes = fr["axes"]
             if not isinstance(axes, list) or len(axes) != 3:
                 raise IsochorError("lattice.frame.axes: must be three [x, y, z] edge vectors")
             frame = (
-                _vec(fr["origin"], "lattice.frame.origin"),
-                tuple(_vec(a, f"lattice.frame.axes[{n}]") for n, a in enumerate(axes)),
+                vec3(fr["origin"], "lattice.frame.origin"),
+                tuple(vec3(a, f"lattice.frame.axes[{n}]") for n, a in enumerate(axes)),
             )
         moves = []
-        for n, mv in enumerate(_list(doc.get("moves", []), "moves")):
+        for n, mv in enumerate(as_list(doc.get("moves", []), "moves")):
             where = f"moves[{n}]"
-            _check_keys(mv, where, {"node", "by", "to"}, {"node"})
+            check_keys(mv, where, {"node", "by", "to"}, {"node"})
             if ("by" in mv) == ("to" in mv):
                 raise IsochorError(f"{where}: give exactly one of 'by' or 'to'")
-            node = _node(mv["node"], f"{where}.node", shape)
+            node = node_index(mv["node"], f"{where}.node", shape)
             if any(m.node == node for m in moves):
                 raise IsochorError(f"{where}.node: node {list(node)} is already moved")
             if "by" in mv:
-                moves.append(Move(node, by=_vec(mv["by"], f"{where}.by")))
+                moves.append(Move(node, by=vec3(mv["by"], f"{where}.by")))
             else:
-                moves.append(Move(node, to=_vec(mv["to"], f"{where}.to")))
-        pins, axis_pins = _pins(_list(doc.get("pins", []), "pins"), shape, version)
+                moves.append(Move(node, to=vec3(mv["to"], f"{where}.to")))
+        pins, axis_pins = _pins(as_list(doc.get("pins", []), "pins"), shape, version)
         ratio = number(doc.get("target_volume_ratio", 1.0), "target_volume_ratio")
         ratio = check_ratio(ratio, "target_volume_ratio")
-        preserve = _word(doc.get("preserve", "total"), "preserve", PRESERVE)
-        anchor = _word(doc.get("anchor", "far-side"), "anchor", ANCHORS)
-        keep_centroid = _flag(doc.get("keep_centroid", False), "keep_centroid")
-        fold_guard = _flag(doc.get("fold_guard", True), "fold_guard")
+        preserve = word(doc.get("preserve", "total"), "preserve", PRESERVE)
+        anchor = word(doc.get("anchor", "far-side"), "anchor", ANCHORS)
+        keep_centroid = flag(doc.get("keep_centroid", False), "keep_centroid")
+        fold_guard = flag(doc.get("fold_guard", True), "fold_guard")
         tol = doc.get("tolerance", {})
-        _check_keys(tol, "tolerance", {"volume", "nodes"}, set())
+        check_keys(tol, "tolerance", {"volume", "nodes"}, set())
         tv = number(tol.get("volume", TOL_VOLUME), "tolerance.volume", TOLERANCE_RANGE)
         tn = number(tol.get("nodes", TOL_NODES), "tolerance.nodes", TOLERANCE_RANGE)
         return cls(
@@ -272,7 +283,7 @@ class Scenario:
         except (OSError, ValueError) as exc:  # ValueError: a NUL byte, a bad encoding
             raise IsochorError(f"{path}: cannot read the scenario ({exc})") from None
         try:
-            doc = json.loads(text, parse_int=_parse_int, parse_constant=_parse_constant)
+            doc = json.loads(text, parse_int=parse_int, parse_constant=parse_constant)
         except json.JSONDecodeError as exc:
             raise IsochorError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
         except RecursionError:
@@ -312,52 +323,6 @@ class Scenario:
         return replace(self, **changes)
 
 
-# -- validation helpers ---------------------------------------------------------------------
-def _check_keys(obj: Any, where: str, allowed: set[str] | None, required: set[str]) -> None:
-    if not isinstance(obj, dict):
-        raise IsochorError(f"{where}: must be a JSON object")
-    if allowed is not None:
-        unknown = sorted(set(obj) - allowed)
-        if unknown:
-            raise IsochorError(f"{where}: unknown key {unknown[0]!r}")
-    missing = sorted(required - set(obj))
-    if missing:
-        raise IsochorError(f"{where}: missing key {missing[0]!r}")
-
-
-def _list(obj: Any, where: str) -> list:
-    if not isinstance(obj, list):
-        raise IsochorError(f"{where}: must be a list")
-    return obj
-
-
-def _parse_int(text: str) -> int:
-    if len(text.lstrip("-")) > MAX_DIGITS:
-        raise IsochorError(f"a number has {len(text.lstrip('-'))} digits")
-    return int(text)
-
-
-def _parse_constant(name: str) -> float:
-    raise IsochorError(f"{name} is not a JSON number")
-
-
-def _vec(obj: Any, where: str) -> tuple[float, float, float]:
-    if not isinstance(obj, list) or len(obj) != 3:
-        raise IsochorError(f"{where}: must be a list of three numbers")
-    limit = (-MAX_COORDINATE, MAX_COORDINATE)
-    return tuple(number(x, where, limit) for x in obj)
-
-
-def _int_triple(obj: Any, where: str) -> tuple[int, int, int]:
-    if (
-        not isinstance(obj, list)
-        or len(obj) != 3
-        or not all(isinstance(x, int) and not isinstance(x, bool) for x in obj)
-    ):
-        raise IsochorError(f"{where}: must be a list of three whole numbers")
-    return tuple(obj)
-
-
 def _pins(items: list, shape: tuple[int, int, int], version: int) -> tuple[tuple, tuple]:
     """The plain pins (all axes) and the axis pins of a ``pins`` list."""
     pins, axis_pins, seen = [], [], set()
@@ -366,14 +331,14 @@ def _pins(items: list, shape: tuple[int, int, int], version: int) -> tuple[tuple
         if isinstance(p, dict):
             if version == 1:
                 raise IsochorError(f'{where}: a pin with axes needs "version": 2')
-            _check_keys(p, where, {"node", "axes"}, {"node", "axes"})
-            node = _node(p["node"], f"{where}.node", shape)
+            check_keys(p, where, {"node", "axes"}, {"node", "axes"})
+            node = node_index(p["node"], f"{where}.node", shape)
             axes = p["axes"]
             if not isinstance(axes, str) or not axes or set(axes) - set("xyz"):
                 raise IsochorError(f'{where}.axes: must be some of "xyz", like "z" or "xy"')
             axes = "".join(a for a in "xyz" if a in axes)
         else:
-            node, axes = _node(p, where, shape), "xyz"
+            node, axes = node_index(p, where, shape), "xyz"
         if node in seen:
             raise IsochorError(f"{where}: node {list(node)} is already pinned")
         seen.add(node)
@@ -382,26 +347,3 @@ def _pins(items: list, shape: tuple[int, int, int], version: int) -> tuple[tuple
         else:
             axis_pins.append((node, axes))
     return tuple(pins), tuple(axis_pins)
-
-
-def _word(obj: Any, where: str, words: tuple[str, ...]) -> str:
-    if obj not in words:
-        raise IsochorError(
-            f"{where}: must be one of {', '.join(map(repr, words))}, got {show(obj)}"
-        )
-    return obj
-
-
-def _flag(obj: Any, where: str) -> bool:
-    if not isinstance(obj, bool):
-        raise IsochorError(f"{where}: must be true or false, got {show(obj)}")
-    return obj
-
-
-def _node(obj: Any, where: str, shape: tuple[int, int, int]) -> tuple[int, int, int]:
-    ijk = _int_triple(obj, where)
-    if not all(0 <= a < s for a, s in zip(ijk, shape)):
-        raise IsochorError(
-            f"{where}: node {list(ijk)} is outside the {shape[0]}x{shape[1]}x{shape[2]} lattice"
-        )
-    return ijk
