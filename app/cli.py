@@ -38,7 +38,6 @@ from . import interrupts
 interrupts.install()
 
 import argparse  # noqa: E402
-import contextlib  # noqa: E402
 import json  # noqa: E402
 import os  # noqa: E402
 import sys  # noqa: E402
@@ -51,6 +50,7 @@ from typing import TYPE_CHECKING, Any, NoReturn, TextIO  # noqa: E402
 
 from .. import __version__  # noqa: E402
 from ..core.errors import IsochorError  # noqa: E402
+from .console import PipeSafe  # noqa: E402
 
 # One BLAS thread unless the user says otherwise: the lattice products are small and the
 # solver shares the cores with the window; measured under load, a 125-node basis product
@@ -216,6 +216,11 @@ def _parser() -> argparse.ArgumentParser:
         "moved nodes; none: let the lattice drift (the paper)",
     )
     goal.add_argument(
+        "--symmetry",
+        choices=("none", "x", "y", "z"),
+        help="keep the edit and the result mirror images across that mid-plane of the lattice",
+    )
+    goal.add_argument(
         "--fold-guard",
         action=argparse.BooleanOptionalAction,
         default=None,
@@ -286,7 +291,7 @@ def _solve(args: argparse.Namespace) -> int:
     problem = build(scenario)
     for w in problem.warnings:
         print(f"isochor: warning: {w}", file=sys.stderr)
-    console = _PipeSafe(sys.stdout)
+    console = PipeSafe(sys.stdout)
     out = None if args.quiet else console
     result = run_solve(problem, out)
     total = time.perf_counter() - t0
@@ -309,6 +314,8 @@ def _solve(args: argparse.Namespace) -> int:
     for note in exported.notes if exported is not None else ():
         print(f"isochor: note: {note}", file=sys.stderr)
     _summary(result, args, console)
+    if result.converged and not result.handles_met:  # the best fit, said as a warning
+        print(f"isochor: warning: {result.message}", file=sys.stderr)
     if not result.converged:
         folded = result.folds is not None and result.folds.folded
         what = "" if folded else "the solve did not converge: "  # the message says "folded"
@@ -324,7 +331,7 @@ def _with_goal(scenario, args: argparse.Namespace):
     changes: dict[str, Any] = {}
     if args.target is not None:
         changes["target_volume_ratio"] = check_ratio(args.target, "--target")
-    for key in ("preserve", "keep_centroid", "anchor", "fold_guard"):
+    for key in ("preserve", "keep_centroid", "anchor", "fold_guard", "symmetry"):
         if getattr(args, key) is not None:
             changes[key] = getattr(args, key)
     return scenario.with_(**changes) if changes else scenario
@@ -348,6 +355,7 @@ def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:
         problem.nodes,
         problem.fixed,
         goal=sc.goal,
+        handles=sc.handles,
         options=problem.options,
     )
     if out is not None:
@@ -373,32 +381,7 @@ def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:
     return run_to_end(run, row)
 
 
-class _PipeSafe:
-    """Standard output that a reader gone away (``isochor solve ... | head -1``) silences
-    instead of stopping the solve: the table is for reading, the files are the work."""
-
-    def __init__(self, stream: TextIO) -> None:
-        self.stream: TextIO | None = stream
-
-    def write(self, text: str) -> None:
-        self._do(lambda s: s.write(text))
-
-    def flush(self) -> None:
-        self._do(lambda s: s.flush())
-
-    def _do(self, action) -> None:
-        if self.stream is None:
-            return
-        try:
-            action(self.stream)
-        except BrokenPipeError:
-            # what is still buffered goes nowhere, and the exit does not complain either
-            with contextlib.suppress(OSError, ValueError):
-                os.dup2(os.open(os.devnull, os.O_WRONLY), self.stream.fileno())
-            self.stream = None
-
-
-def _summary(result: SolveResult, args: argparse.Namespace, out: _PipeSafe) -> None:
+def _summary(result: SolveResult, args: argparse.Namespace, out: PipeSafe) -> None:
     if args.quiet:
         return
     print(

@@ -24,30 +24,41 @@ from .lattice import Lattice
 AXES = "xyz"
 
 
-def rigid_freedom(points: np.ndarray, fixed: np.ndarray) -> int:
+def rigid_freedom(points: np.ndarray, fixed: np.ndarray, rows: np.ndarray | None = None) -> int:
     """How many independent rigid motions (of 6) leave every fixed coordinate in place.
 
     A small rigid motion moves a point ``p`` by ``t + w x p``; a fixed coordinate ``a`` of
-    ``p`` asks ``e_a . (t + w x p) = t_a + w . (p x e_a) = 0``. The motions left are the
-    null space of those rows.
+    ``p`` asks ``e_a . (t + w x p) = t_a + w . (p x e_a) = 0``. A linear constraint
+    ``sum_j r_j . x_j`` (a handle) asks ``t . sum_j r_j + w . sum_j p_j x r_j = 0``. The
+    motions left are the null space of those rows.
 
     Parameters
     ----------
     points : (n, 3) node positions
     fixed : (n, 3) bool, the fixed coordinates
+    rows : (k, n, 3) linear constraints on the nodes besides them, or None
     """
-    rows_, axes = np.nonzero(fixed)
-    if not len(rows_):
-        return 6
-    p = points[rows_]
-    p = (p - p.mean(axis=0)) / max(float(np.ptp(points, axis=0).max()), 1e-300)
+    nodes_, axes = np.nonzero(fixed)
+    p = (points - points.mean(axis=0)) / max(float(np.ptp(points, axis=0).max()), 1e-300)
     e = np.eye(3)[axes]
-    m = np.hstack([e, np.cross(p, e)])
+    m = np.hstack([e, np.cross(p[nodes_], e)])
+    if rows is not None and len(rows):
+        m = np.vstack([m, np.hstack([rows.sum(axis=1), np.cross(p, rows).sum(axis=1)])])
+    if not len(m):
+        return 6
     s = np.linalg.svd(m, compute_uv=False)
     return 6 - int(np.sum(s > 1e-9 * s[0]))
 
 
-def held_face(lattice: Lattice, nodes: np.ndarray, fixed: np.ndarray) -> tuple[np.ndarray, str]:
+def held_face(
+    lattice: Lattice,
+    nodes: np.ndarray,
+    fixed: np.ndarray,
+    *,
+    rows: np.ndarray | None = None,
+    points: np.ndarray | None = None,
+    mirror_axis: int | None = None,
+) -> tuple[np.ndarray, str]:
     """The nodes the far-side rule holds, and a name for them (``"x min"``, ...).
 
     Parameters
@@ -55,6 +66,10 @@ def held_face(lattice: Lattice, nodes: np.ndarray, fixed: np.ndarray) -> tuple[n
     lattice : the lattice (its rest nodes tell which nodes were moved, and face distances)
     nodes : (n, 3) current node positions
     fixed : (n, 3) bool, the fixed coordinates
+    rows : (k, n, 3) the handles' linear constraints, which hold the lattice too
+    points : (h, 3) the handles' rest points: edits, like the moved nodes
+    mirror_axis : under symmetry, the faces across this axis are not candidates (holding
+        one would break the symmetry, and the mirror already stops motion along it)
 
     Returns
     -------
@@ -64,14 +79,19 @@ def held_face(lattice: Lattice, nodes: np.ndarray, fixed: np.ndarray) -> tuple[n
     none = np.zeros(lattice.n_nodes, dtype=bool)
     rest = lattice.rest_nodes
     moved = fixed.any(axis=1) & np.any(np.abs(nodes - rest) > 1e-12 * lattice.size, axis=1)
-    if not moved.any() or rigid_freedom(nodes, fixed) == 0:
-        return none, ""
     uvw = lattice.grid_parameters()
+    edits = uvw[moved]
+    if points is not None and len(points):
+        edits = np.vstack([edits, lattice.to_parameters(points)])
+    if not len(edits) or rigid_freedom(nodes, fixed, rows) == 0:
+        return none, ""
     lengths = np.linalg.norm(lattice.axes, axis=1)
     best, face = -1.0, (0, 0)
     for axis in range(3):
         for side in (0, 1):
-            score = float(np.min(np.abs(uvw[moved, axis] - side))) * lengths[axis]
+            if axis == mirror_axis:
+                continue
+            score = float(np.min(np.abs(edits[:, axis] - side))) * lengths[axis]
             if score > best + 1e-12 * lattice.size:
                 best, face = score, (axis, side)
     if best <= 0:  # moved nodes on every face: they fix the lattice well enough

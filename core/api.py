@@ -31,6 +31,7 @@ from .errors import IsochorError
 from .export import export_file
 from .formats import is_scenario
 from .generators import run_to_end
+from .handles import Handle
 from .lattice import Lattice
 from .mesh import TriMesh
 from .multilevel import solve as solve_levels
@@ -85,8 +86,11 @@ class Session:
     anchor : ``"far-side"`` (the default: while too little is fixed to hold the lattice,
         the face away from the moved nodes stays put) or ``"none"`` (the paper's behaviour)
     fold_guard : penalise folding the model inside out (default True)
+    symmetry : ``"x"``, ``"y"`` or ``"z"``: edits and results are mirror images across that
+        mid-plane of the lattice; ``"none"`` (the default)
 
-    A scenario file's own settings are the defaults of a session on it. The settings are
+    Handles (:meth:`add_handle`) are points of the model that the solve puts where they are
+    told to go. A scenario file's own settings are the defaults of a session on it. The settings are
     attributes of the same names (``target`` for the ratio) and may change between solves.
 
     Examples
@@ -111,6 +115,7 @@ class Session:
         keep_centroid: bool | None = None,
         anchor: str | None = None,
         fold_guard: bool | None = None,
+        symmetry: str | None = None,
     ) -> None:
         self._mesh: CallerMesh | None = None
         if isinstance(source, (str, Path)):
@@ -132,7 +137,7 @@ class Session:
         if target is not None:
             changes["target_volume_ratio"] = target
         goal = {"preserve": preserve, "keep_centroid": keep_centroid, "anchor": anchor}
-        goal["fold_guard"] = fold_guard
+        goal.update(fold_guard=fold_guard, symmetry=symmetry)
         changes.update({k: v for k, v in goal.items() if v is not None})
         scenario = _checked(scenario, changes)
         self.problem: Problem = build(scenario, model=model)
@@ -143,6 +148,9 @@ class Session:
         self.target = float(scenario.target_volume_ratio)
         self.preserve, self.keep_centroid = scenario.preserve, scenario.keep_centroid
         self.anchor, self.fold_guard = scenario.anchor, scenario.fold_guard
+        self.symmetry = scenario.symmetry
+        #: the surface handles of the next solve (see :meth:`add_handle`)
+        self.handles: list[Handle] = list(scenario.handles)
         self.result: SolveResult | None = None
 
     # -- the lattice ------------------------------------------------------------------------
@@ -194,8 +202,28 @@ class Session:
     @property
     def goal(self) -> Goal:
         """What the next solve holds (from ``target``, ``preserve``, ``keep_centroid``,
-        ``anchor`` and ``fold_guard``)."""
-        return Goal(self.target, self.preserve, self.keep_centroid, self.anchor, self.fold_guard)
+        ``anchor``, ``fold_guard`` and ``symmetry``)."""
+        return Goal(
+            self.target,
+            self.preserve,
+            self.keep_centroid,
+            self.anchor,
+            self.fold_guard,
+            self.symmetry,
+        )
+
+    def add_handle(self, at: Sequence[float], to: Sequence[float] | None = None) -> int:
+        """Add a handle on the model's point ``at`` (rest coordinates) that the next solves
+        put at ``to`` (by default where the current nodes put it: no change until moved).
+        Returns its index in :attr:`handles`."""
+        if to is None:
+            to = self.lattice.deform(np.reshape(np.asarray(at, dtype=float), (1, 3)), self.nodes)[0]
+        self.handles.append(Handle(at, to))
+        return len(self.handles) - 1
+
+    def move_handle(self, index: int, to: Sequence[float]) -> None:
+        """Send handle ``index`` to ``to``."""
+        self.handles[index] = self.handles[index].moved_to(to)
 
     # -- solving -----------------------------------------------------------------------------
     def steps(self) -> Generator[Progress, None, SolveResult]:
@@ -207,6 +235,7 @@ class Session:
             self.nodes,
             self.fixed,
             goal=self.goal,
+            handles=self.handles,
             options=self.problem.options,
         )
         self.nodes = np.array(result.nodes)
@@ -278,6 +307,8 @@ class Session:
             keep_centroid=goal.keep_centroid,
             anchor=goal.anchor,
             fold_guard=goal.fold_guard,
+            handles=tuple(self.handles),
+            symmetry=goal.symmetry,
         )
 
     def save(self, path: str | Path) -> None:
@@ -308,7 +339,7 @@ def _checked(scenario: Scenario, changes: dict[str, Any]) -> Scenario:
         lat["frame"] = {"origin": changes["frame"][0], "axes": changes["frame"][1]}
     if "target_volume_ratio" in changes:
         doc["target_volume_ratio"] = changes["target_volume_ratio"]
-    for key in GOAL_DEFAULTS:
+    for key in (*GOAL_DEFAULTS, "symmetry"):
         if key in changes:
             doc[key], doc["version"] = changes[key], VERSION
     if "moves" in changes:
@@ -339,6 +370,7 @@ def deform(
     *,
     moves: Mapping[Node, Sequence[float]] | Iterable[Mapping[str, Any]] = (),
     pins: Iterable[Node | Mapping[str, Any]] = (),
+    handles: Iterable[Handle | Mapping[str, Any]] = (),
     target: float = 1.0,
     **options: Any,
 ) -> Deformed:
@@ -353,9 +385,11 @@ def deform(
         ``{"node": [i, j, k], "by": [...]}`` / ``{"node": ..., "to": [...]}``
     pins : nodes kept where they rest, or ``{"node": (i, j, k), "axes": "z"}`` for a node
         kept on some axes only
+    handles : ``{"at": [x, y, z], "to": [x, y, z]}`` (or :class:`~isochor.core.handles.Handle`):
+        the mesh's point ``at`` must land at ``to``
     target : the volume to reach relative to the mesh's
     options : ``padding``, ``frame``, ``preserve``, ``keep_centroid``, ``anchor``,
-        ``fold_guard``: see :class:`Session`
+        ``fold_guard``, ``symmetry``: see :class:`Session`
 
     Returns
     -------
@@ -376,5 +410,7 @@ def deform(
             session.pin(tuple(pin["node"]), axes=pin.get("axes", "xyz"))
         else:
             session.pin(pin)
+    for h in handles:
+        session.handles.append(Handle.of(h))
     result = session.solve()
     return Deformed(session.mesh, session.report, result)

@@ -39,6 +39,7 @@ from .volume import MomentOperator, VolumeOperator, face_volumes
 
 PRESERVE = ("total", "per-body")
 ANCHORS = ("far-side", "none")
+SYMMETRIES = ("none", "x", "y", "z")
 #: the volume ratios a lattice deformation reaches without folding the model: measured on
 #: the shared models (docs/CONSTRAINTS.md), beyond these the solve folds or fails
 RATIO_RANGE = (0.05, 20.0)
@@ -60,6 +61,8 @@ class Goal:
         the paper's behaviour
     fold_guard : penalise a nearly inverted deformation (det J near zero) so that the solver
         does not meet the volume by turning part of the model inside out
+    symmetry : ``"x"``, ``"y"`` or ``"z"``: the edit and the result are mirror images across
+        that mid-plane of the lattice (:mod:`isochor.core.symmetry`); ``"none"``
     """
 
     target_ratio: float = 1.0
@@ -67,6 +70,7 @@ class Goal:
     keep_centroid: bool = False
     anchor: str = "far-side"
     fold_guard: bool = True
+    symmetry: str = "none"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "target_ratio", check_ratio(self.target_ratio))
@@ -74,6 +78,8 @@ class Goal:
             raise IsochorError(f"preserve: must be one of {', '.join(PRESERVE)}")
         if self.anchor not in ANCHORS:
             raise IsochorError(f"anchor: must be one of {', '.join(ANCHORS)}")
+        if self.symmetry not in SYMMETRIES:
+            raise IsochorError(f"symmetry: must be one of {', '.join(SYMMETRIES)}")
 
 
 def check_ratio(ratio: float, where: str = "target volume ratio") -> float:
@@ -218,12 +224,20 @@ class Constraints:
     bodies : the full mesh's bodies (for ``per-body``)
     v_full : the full mesh's rest volume (the reference of every normalisation)
     size : object size
+    extra : linear constraints that hold on every level alike (the handles,
+        :class:`isochor.core.handles.HandleSystem`: ``count``, ``values(X)``, ``jacobian``)
     """
 
     def __init__(
-        self, level: Level, goal: Goal, bodies: Bodies | None, v_full: float, size: float
+        self,
+        level: Level,
+        goal: Goal,
+        bodies: Bodies | None,
+        v_full: float,
+        size: float,
+        extra=None,
     ) -> None:
-        self.level, self.goal, self.bodies = level, goal, bodies
+        self.level, self.goal, self.bodies, self.extra = level, goal, bodies, extra
         t = goal.target_ratio
         if goal.preserve == "per-body" and bodies is not None:
             self.targets = t * level.rest_body_volumes(bodies)
@@ -232,7 +246,8 @@ class Constraints:
             self.targets = np.array([t * level.rest_volume])
             self.scales = np.array([min(1.0, t) * abs(v_full)])
         self.centroid_scale = CENTROID_SCALE * t * abs(v_full) * size
-        self.count = len(self.targets) + (3 if goal.keep_centroid else 0)
+        self.own = len(self.targets) + (3 if goal.keep_centroid else 0)
+        self.count = self.own + (extra.count if extra is not None else 0)
 
     def values(self, nodes: np.ndarray) -> np.ndarray:
         lvl = self.level
@@ -244,6 +259,8 @@ class Constraints:
         if self.goal.keep_centroid:
             m, _ = lvl.moment_and_gradient(nodes)
             out.append((m - vols.sum() * lvl.rest_centroid) / self.centroid_scale)
+        if self.extra is not None:
+            out.append(self.extra.values(nodes))
         return np.concatenate(out)
 
     def values_and_jacobian(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -267,4 +284,7 @@ class Constraints:
             c.append((m - vols.sum() * c0) / self.centroid_scale)
             dv_total = dvols.sum(axis=0)
             dc.append((dm - c0[:, None, None] * dv_total[None]) / self.centroid_scale)
+        if self.extra is not None:
+            c.append(self.extra.values(nodes))
+            dc.append(self.extra.jacobian)
         return np.concatenate(c), np.concatenate(dc)

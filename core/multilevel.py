@@ -34,12 +34,14 @@ from .constraints import Bodies, Constraints, Goal, Level
 from .errors import IsochorError
 from .folds import FoldCheck, FoldGuard, interior_points
 from .generators import relay
+from .handles import Handle, HandleSystem, handle_rows
 from .lattice import Lattice
 from .mesh import TriMesh
 from .outcome import outcome
 from .records import LevelStats, Progress, SolveResult, frozen_copy
-from .solver import LevelProblem, SolverOptions, augmented_lagrangian, worst
+from .solver import Coordinates, LevelProblem, SolverOptions, augmented_lagrangian, worst
 from .springs import SpringNetwork
+from .symmetry import Mirror
 from .volume import signed_volume
 
 #: the fold guard keeps det J above this fraction of min(1, target ratio) ...
@@ -100,9 +102,10 @@ class EmbeddedSurface:
         """The full mesh's solid bodies (shells with their cavities)."""
         return Bodies.of(self.full)
 
-    def constraints(self, k: int, goal: Goal) -> Constraints:
+    def constraints(self, k: int, goal: Goal, extra: HandleSystem | None = None) -> Constraints:
+        """The goal's constraints on level ``k`` (and the handles', when given)."""
         bodies = self.bodies if goal.preserve == "per-body" else None
-        return Constraints(self.level(k), goal, bodies, self.rest_volume, self.size)
+        return Constraints(self.level(k), goal, bodies, self.rest_volume, self.size, extra)
 
     @cached_property
     def _probe(self) -> TriMesh:
@@ -148,6 +151,7 @@ def solve(
     *,
     target_ratio: float = 1.0,
     goal: Goal | None = None,
+    handles: Sequence[Handle] = (),
     options: SolverOptions | None = None,
     start_level: int | None = None,
 ) -> Generator[Progress, None, SolveResult]:
@@ -161,6 +165,8 @@ def solve(
     target_ratio : target volume over the rest volume, when no ``goal`` is given
     goal : what to hold (:class:`isochor.core.constraints.Goal`); by default the volume at
         ``target_ratio``, with the far-side anchor and the fold guard
+    handles : points of the model that must land at given places
+        (:class:`isochor.core.handles.Handle`); under symmetry each gets its mirror image
     start_level : first pyramid level to solve on; by default the coarsest level with at
         least ``options.start_triangles`` triangles
 
@@ -186,12 +192,29 @@ def solve(
     v_ref = abs(surface.rest_volume)
     if v_ref <= 0:
         raise IsochorError("The model encloses no volume, so there is no volume to preserve.")
-    held, face = (
-        held_face(lattice, x, fixed) if goal.anchor == "far-side" else (np.zeros(len(x), bool), "")
-    )
+    size, center = surface.size, surface.center
+    handles = tuple(handles)
+    mirror = Mirror.of(lattice, goal.symmetry)
+    if mirror is not None:
+        x, fixed = mirror.symmetric(x, fixed)
+        handles += tuple(mirror.handle(h) for h in handles)
+    held, face = np.zeros(len(x), bool), ""
+    if goal.anchor == "far-side":
+        held, face = held_face(
+            lattice,
+            x,
+            fixed,
+            rows=handle_rows(lattice, handles)[0] if handles else None,
+            points=np.array([h.at for h in handles]).reshape(-1, 3),
+            mirror_axis=None if mirror is None else mirror.axis,
+        )
     fixed[held] = True
     free = ~fixed
-    size, center = surface.size, surface.center
+    if mirror is None:
+        coords = Coordinates(free, center, size)
+    else:
+        own, *ties = mirror.ties(free)
+        coords = Coordinates(own, center, size, tuple(ties))
     n_levels = len(surface.levels)
     if start_level is None:
         start_level = next(
@@ -210,18 +233,26 @@ def solve(
     else:
         energy_grad = springs.energy_and_gradient
 
+    system = None
+    if handles and coords.count:
+        spare = surface.constraints(start_level, goal).own
+        system = HandleSystem(lattice, handles, x, coords.reduce, spare, size)
+
+    def constraints(k):
+        return surface.constraints(k, goal, system)
+
     def result(x, stats, terminal, lam, sigma, converged, message=""):
         return outcome(
             surface, goal, opts, x, stats, terminal, lam, sigma, converged, message, held, face,
-            int(free.any(axis=1).sum()), t0,
+            int(coords.moving.any(axis=1).sum()), t0, system, mirror,
         )  # fmt: skip
 
-    if not free.any():
+    if not coords.count:
         return result(x, [], -1, np.zeros(1), 0.0, True, "no free node: nothing to solve")
 
-    first = surface.constraints(start_level, goal)
+    first = constraints(start_level)
     c, dc = first.values_and_jacobian(x)
-    if np.max(np.abs(dc[:, free])) * size < 1e-9:
+    if np.max(np.abs(coords.reduce(dc[: first.own]))) * size < 1e-9:
         raise IsochorError(
             "The free nodes cannot change the model's volume: choose free nodes that influence "
             "the model, or pin fewer nodes."
@@ -242,7 +273,7 @@ def solve(
     )
 
     lam, sigma = np.zeros(first.count), opts.sigma0
-    warm = _warm_start(surface, goal, x, free, energy_grad, opts)
+    warm = _warm_start(constraints, len(surface.levels), x, coords, energy_grad, opts)
     x_prev = x
     if warm is not None:  # already at the volume: skip the coarse levels whose optimum differs
         start_level, lam = max(start_level, warm[0]), warm[1]
@@ -251,16 +282,17 @@ def solve(
         # method and can end on a saddle (the torus stretch does). A tiny fixed-seed
         # nudge of the free coordinates lets the minimiser leave it; results stay
         # reproducible.
-        nudge = np.random.default_rng(0).standard_normal(int(free.sum()))
+        nudge = np.random.default_rng(0).standard_normal(coords.count)
         x = x.copy()
-        x[free] += opts.symmetry_break * size * nudge
+        x[coords.free] += opts.symmetry_break * size * nudge
+        x = coords.tied(x)
     stats: list[LevelStats] = []
     terminal = n_levels - 1
     converged_level = False
     for k in range(start_level, n_levels):
         t_level = time.perf_counter()
-        cons = surface.constraints(k, goal)
-        problem = LevelProblem(x, free, energy_grad, cons.values_and_jacobian, center, size)
+        cons = constraints(k)
+        problem = LevelProblem(x, coords, energy_grad, cons.values_and_jacobian, center, size)
         run = augmented_lagrangian(problem, problem.to_y(x), lam, sigma, opts)
 
         def progress(it, k=k, cons=cons, problem=problem):
@@ -289,7 +321,7 @@ def solve(
         change = float(np.max(np.abs(x - x_prev))) / size
         estimate = None
         if k > 0:  # Eq 29 on the constraints, between this level and the next coarser one
-            c_prev = surface.constraints(k - 1, goal).values(x)
+            c_prev = constraints(k - 1).values(x)
             ratio = cons.level.triangles / surface.level(k - 1).triangles
             estimate = float(np.max(np.abs(c_prev - cons.values(x)))) / max(ratio - 1.0, 1e-9)
         stats.append(
@@ -331,7 +363,7 @@ def solve(
             converged_level = True
             break
         if change < opts.tol_nodes and estimate is not None and estimate <= opts.tol_volume:
-            c_full = surface.constraints(-1, goal).values(x)
+            c_full = constraints(-1).values(x)
             if np.max(np.abs(c_full)) <= opts.tol_volume:
                 terminal, converged_level = k, True
                 break
@@ -339,7 +371,7 @@ def solve(
     return result(x, stats, terminal, lam, sigma, converged_level)
 
 
-def _warm_start(surface, goal, x, free, energy_grad, opts) -> tuple[int, np.ndarray] | None:
+def _warm_start(constraints, n, x, coords, energy_grad, opts) -> tuple[int, np.ndarray] | None:
     """Where to start when ``x`` already meets the goal (a re-solve, a small edit).
 
     Returns the coarsest level whose own constraints at ``x`` agree with the full mesh's to
@@ -347,22 +379,22 @@ def _warm_start(surface, goal, x, free, energy_grad, opts) -> tuple[int, np.ndar
     ``x`` does not meet the goal (then the solve starts at the coarsest level with lambda 0).
     A converged result restarted this way stops after one level and no steps, instead of
     re-deriving a different equilibrium from the coarse levels (the paper's Plate 6).
+    ``constraints(k)`` are level k's constraints, of ``n`` levels.
     """
-    c_full = surface.constraints(-1, goal).values(x)
+    c_full = constraints(-1).values(x)
     if np.max(np.abs(c_full)) > opts.tol_volume:
         return None
-    n = len(surface.levels)
 
     def agrees(k):
-        c = surface.constraints(k, goal).values(x)
+        c = constraints(k).values(x)
         return (
             np.max(np.abs(c)) <= opts.volume_margin * opts.tol_volume
             and np.max(np.abs(c - c_full)) <= opts.tol_volume
         )
 
     k = next(k for k in range(n) if k == n - 1 or agrees(k))
-    _, dc = surface.constraints(k, goal).values_and_jacobian(x)
+    _, dc = constraints(k).values_and_jacobian(x)
     _, de = energy_grad(x)
-    de, dc = de[free] / surface.size, dc[:, free] * surface.size
+    de, dc = coords.reduce(de) / coords.size, coords.reduce(dc) * coords.size
     lam, *_ = np.linalg.lstsq(dc.T, de, rcond=None)
     return k, lam

@@ -14,15 +14,34 @@ import time
 import numpy as np
 
 from .errors import IsochorError
+from .handles import handles_sentence
 from .records import BodyVolume, SolveResult, frozen_copy
 from .solver import worst
 
 
 def outcome(
-    surface, goal, opts, x, stats, terminal, lam, sigma, converged, message, held, face, n_free, t0
+    surface,
+    goal,
+    opts,
+    x,
+    stats,
+    terminal,
+    lam,
+    sigma,
+    converged,
+    message,
+    held,
+    face,
+    n_free,
+    t0,
+    system=None,
+    mirror=None,
 ) -> SolveResult:
-    """The result measured on the full mesh: volumes, bodies, centroid, folds; a result
-    that misses a constraint, folds the model or turns its volume's sign is no success."""
+    """The result measured on the full mesh: volumes, bodies, centroid, folds, where each
+    handle's point ended (``system``, a :class:`~isochor.core.handles.HandleSystem`) and the
+    asymmetry (``mirror``); a result that misses a constraint, folds the model or turns its
+    volume's sign is no success. Handles that cannot all be met are fitted by least squares
+    and said so in the message: that is the best the lattice can do, not a failure."""
     full = surface.level(-1)
     size = surface.size
     v_final = full.volume(x)
@@ -35,7 +54,7 @@ def outcome(
             "The solve broke down: its numbers overflowed. The moves or the target "
             "volume are too extreme for this lattice."
         )
-    cons = surface.constraints(-1, goal)
+    cons = surface.constraints(-1, goal, system)
     c = cons.values(x)
     folds = surface.fold_check.measure(x)
     bodies: tuple[BodyVolume, ...] = ()
@@ -66,7 +85,11 @@ def outcome(
             "exceeds the tolerance"
         )
     ok = converged and not problems
-    message = "; ".join(([message] if message else []) + problems)
+    handles = ()
+    if system is not None:  # the user's handles: the first half under symmetry
+        handles = system.results(x, len(system.handles) // (2 if mirror else 1))
+    fitted = handles_sentence(handles)
+    message = "; ".join(([message] if message else []) + problems + ([fitted] if fitted else []))
     return SolveResult(
         frozen_copy(x),
         tuple(stats),
@@ -89,4 +112,6 @@ def outcome(
         folds=folds,
         bodies=bodies,
         centroid_shift=shift,
+        handles=handles,
+        asymmetry=None if mirror is None else mirror.asymmetry(x),
     )

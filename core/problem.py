@@ -23,6 +23,7 @@ from .pyramid import build_pyramid
 from .scenario import Scenario
 from .shapes import builtin_levels
 from .solver import SolverOptions
+from .symmetry import Mirror
 
 
 @dataclass(frozen=True)
@@ -162,6 +163,14 @@ def build(
         fixed[lattice.index(*p)] = True
     for p, axes in scenario.axis_pins:
         fixed[lattice.index(*p), ["xyz".index(a) for a in axes]] = True
+    Mirror.of(lattice, scenario.symmetry)  # a frame the mirror cannot use fails here
+    for n, h in enumerate(scenario.handles):
+        distance = float(np.linalg.norm(np.subtract(h.to, h.at)))
+        if distance > MAX_MOVE * lattice.size:
+            raise IsochorError(
+                f"handles[{n}]: moves its point by {distance:.3g}, more than {MAX_MOVE:g} "
+                f"times the lattice's size ({lattice.size:.3g}); a wrong unit?"
+            )
     surface = EmbeddedSurface(lattice, levels)
     fit = coverage(lattice, surface.full.vertices)
     return Problem(scenario, surface, nodes, fixed, model, fit)

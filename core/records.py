@@ -89,3 +89,12 @@ class SolveResult:
     folds: Any = None  #: :class:`isochor.core.folds.Folds` on the full mesh
     bodies: tuple[BodyVolume, ...] = ()  #: per body, when there are several or per-body
     centroid_shift: float | None = None  #: |C - C0| / size, with keep_centroid
+    #: where each handle's point ended (:class:`isochor.core.handles.HandleResult`)
+    handles: tuple = ()
+    #: under symmetry: the largest node's distance from its partner's mirror image, / size
+    asymmetry: float | None = None
+
+    @property
+    def handles_met(self) -> bool:
+        """Every handle landed within :data:`isochor.core.handles.HANDLE_MET` of its target."""
+        return all(h.met for h in self.handles)

@@ -44,6 +44,13 @@ def make_report(
         "keep_centroid": sc.keep_centroid,
         "anchor": sc.anchor,
         "fold_guard": sc.fold_guard,
+        "symmetry": sc.symmetry,
+        "asymmetry": result.asymmetry,
+        "handles": [
+            {"at": list(h.at), "to": list(h.to), "reached": list(h.reached), "miss": h.miss}
+            for h in result.handles
+        ],
+        "handles_met": result.handles_met,
         "held": {
             "face": result.held_face or None,
             "nodes": [list(lattice.ijk(r)) for r in result.held],

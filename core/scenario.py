@@ -15,6 +15,14 @@ Version 1::
       "tolerance": {"volume": 0.0005, "nodes": 0.001}
     }
 
+Version 3 adds direct manipulation and symmetric editing::
+
+      "handles": [{"at": [x, y, z], "to": [x, y, z]}],   a point of the model at rest (at)
+                                       that must land at ``to`` (:mod:`isochor.core.handles`)
+      "symmetry": "x"                  or "y", "z", "none" (the default): the edit and the
+                                       result are mirror images across the lattice's
+                                       mid-plane (:mod:`isochor.core.symmetry`)
+
 Version 2 adds what a solve holds besides the volume (:class:`isochor.core.constraints.Goal`);
 a file that uses none of it is still written as version 1, and version 1 files read as
 before::
@@ -44,10 +52,11 @@ from pathlib import Path
 from typing import Any
 
 from .atomic import atomic_write_text
-from .constraints import ANCHORS, PRESERVE, Goal, check_ratio
+from .constraints import ANCHORS, PRESERVE, SYMMETRIES, Goal, check_ratio
 from .defaults import LATTICE_NODES, PADDING, TOL_NODES, TOL_VOLUME
 from .errors import IsochorError
 from .formats import is_model
+from .handles import Handle
 from .lattice import MAX_NODES, MIN_NODES
 from .validate import (
     as_list,
@@ -65,8 +74,8 @@ from .validate import (
 )
 
 FORMAT = "isochor-scenario"
-VERSION = 2
-VERSIONS = (1, 2)
+VERSION = 3
+VERSIONS = (1, 2, 3)
 #: the keys version 2 added, with their defaults
 GOAL_DEFAULTS = {
     "preserve": "total",
@@ -74,6 +83,8 @@ GOAL_DEFAULTS = {
     "anchor": "far-side",
     "fold_guard": True,
 }
+#: the keys version 3 added
+V3_KEYS = ("handles", "symmetry")
 
 #: a scenario is a few kilobytes; anything larger than this is not one
 MAX_SCENARIO_BYTES = 16 * 2**20
@@ -108,6 +119,8 @@ class Scenario:
     keep_centroid: bool = False
     anchor: str = "far-side"
     fold_guard: bool = True
+    handles: tuple[Handle, ...] = ()
+    symmetry: str = "none"
     base_dir: Path | None = field(default=None, compare=False)
     #: the file it was read from, for messages (None when built in memory)
     source: Path | None = field(default=None, compare=False)
@@ -128,6 +141,7 @@ class Scenario:
                 "target_volume_ratio",
                 "tolerance",
                 *GOAL_DEFAULTS,
+                *V3_KEYS,
             },
             {"model"},
         )
@@ -136,13 +150,14 @@ class Scenario:
         version = doc.get("version", VERSION)
         if version not in VERSIONS or isinstance(version, bool):
             raise IsochorError(
-                f"version: this Isochor reads versions 1 and {VERSION}, got {show(version)}"
+                f"version: this Isochor reads versions 1 to {VERSION}, got {show(version)}"
             )
-        if version == 1 and (set(doc) & set(GOAL_DEFAULTS)):
-            raise IsochorError(
-                f"{sorted(set(doc) & set(GOAL_DEFAULTS))[0]}: a version 2 key in a version 1 "
-                'scenario; set "version": 2'
-            )
+        for newer, keys in ((3, set(V3_KEYS)), (2, set(GOAL_DEFAULTS))):
+            if version < newer and set(doc) & keys:
+                raise IsochorError(
+                    f"{sorted(set(doc) & keys)[0]}: a version {newer} key in a version "
+                    f'{version} scenario; set "version": {newer}'
+                )
         model = doc["model"]
         check_keys(model, "model", None, set())
         if ("path" in model) == ("builtin" in model):
@@ -196,6 +211,13 @@ class Scenario:
         anchor = word(doc.get("anchor", "far-side"), "anchor", ANCHORS)
         keep_centroid = flag(doc.get("keep_centroid", False), "keep_centroid")
         fold_guard = flag(doc.get("fold_guard", True), "fold_guard")
+        symmetry = word(doc.get("symmetry", "none"), "symmetry", SYMMETRIES)
+        handles = []
+        for n, hd in enumerate(as_list(doc.get("handles", []), "handles")):
+            check_keys(hd, f"handles[{n}]", {"at", "to"}, {"at", "to"})
+            handles.append(
+                Handle(vec3(hd["at"], f"handles[{n}].at"), vec3(hd["to"], f"handles[{n}].to"))
+            )
         tol = doc.get("tolerance", {})
         check_keys(tol, "tolerance", {"volume", "nodes"}, set())
         tv = number(tol.get("volume", TOL_VOLUME), "tolerance.volume", TOLERANCE_RANGE)
@@ -215,6 +237,8 @@ class Scenario:
             keep_centroid,
             anchor,
             fold_guard,
+            tuple(handles),
+            symmetry,
             Path(base_dir) if base_dir is not None else None,
         )
 
@@ -227,11 +251,15 @@ class Scenario:
             self.keep_centroid,
             self.anchor,
             self.fold_guard,
+            self.symmetry,
         )
 
     @property
     def version(self) -> int:
-        """1 unless a version 2 key differs from its default (or an axis pin is used)."""
+        """The oldest version that can hold this scenario: 3 with handles or symmetry, 2 when
+        a version 2 key differs from its default (or an axis pin is used), else 1."""
+        if self.handles or self.symmetry != "none":
+            return 3
         changed = any(getattr(self, k) != v for k, v in GOAL_DEFAULTS.items())
         return 2 if changed or self.axis_pins else 1
 
@@ -266,6 +294,9 @@ class Scenario:
         }
         if self.version > 1:
             doc.update({k: getattr(self, k) for k in GOAL_DEFAULTS})
+        if self.version > 2:
+            doc["handles"] = [{"at": list(h.at), "to": list(h.to)} for h in self.handles]
+            doc["symmetry"] = self.symmetry
         return doc
 
     # -- files --------------------------------------------------------------------------

@@ -169,13 +169,70 @@ def _two_loop(g: np.ndarray, s_hist: deque, y_hist: deque) -> np.ndarray:
     return -q
 
 
+class Coordinates:
+    """The solver's variables ``y``: the free node coordinates in object sizes about the
+    centre, and the coordinates tied to them (under symmetry the high side of the lattice
+    follows the low side: ``x.flat[dst] = sign * x.flat[src] + offset``, see
+    :meth:`isochor.core.symmetry.Mirror.ties`).
+
+    Parameters
+    ----------
+    free : (n, 3) bool, the coordinates that are variables (an (n,) mask frees whole nodes)
+    center, size : the normalisation of lengths
+    ties : ``(dst, src, sign, offset)`` flat arrays, or None
+    """
+
+    def __init__(self, free, center, size, ties=None) -> None:
+        free = np.asarray(free, dtype=bool)
+        self.free = free[:, None].repeat(3, axis=1) if free.ndim == 1 else free.copy()
+        self.center, self.size = np.asarray(center, dtype=np.float64), float(size)
+        self._origin = np.broadcast_to(self.center, self.free.shape)[self.free]
+        empty = np.zeros(0, dtype=int)
+        self.dst, self.src, self.sign, self.offset = ties or (empty, empty, 0.0, 0.0)
+        self._columns = np.flatnonzero(self.free.ravel())
+        self.count = len(self._columns)
+
+    @property
+    def moving(self) -> np.ndarray:
+        """(n, 3) bool: every coordinate the solve changes (variables and tied ones)."""
+        out = self.free.copy()
+        out.reshape(-1)[self.dst] = True
+        return out
+
+    def to_y(self, nodes: np.ndarray) -> np.ndarray:
+        return (np.asarray(nodes, dtype=np.float64)[self.free] - self._origin) / self.size
+
+    def to_nodes(self, y: np.ndarray, template: np.ndarray) -> np.ndarray:
+        out = np.array(template, dtype=np.float64)
+        out[self.free] = self._origin + self.size * y
+        return self.tied(out)
+
+    def tied(self, nodes: np.ndarray) -> np.ndarray:
+        """``nodes`` (changed in place) with the tied coordinates set from their variables."""
+        if len(self.dst):
+            flat = nodes.reshape(-1)
+            flat[self.dst] = self.sign * flat[self.src] + self.offset
+        return nodes
+
+    def reduce(self, g: np.ndarray) -> np.ndarray:
+        """A gradient over the nodes ``(..., n, 3)`` as one over the variables
+        ``(..., count)`` (a tied coordinate's part goes to the variable it follows)."""
+        g = np.asarray(g, dtype=np.float64)
+        flat = g.reshape(*g.shape[:-2], -1)
+        if len(self.dst):
+            flat = flat.copy()
+            flat[..., self.src] += self.sign * flat[..., self.dst]
+        return flat[..., self._columns]
+
+
 class LevelProblem:
-    """Energy and constraints of one level as functions of the free coordinates ``y``.
+    """Energy and constraints of one level as functions of the variables ``y``.
 
     Parameters
     ----------
     nodes : (n, 3) current node positions; the fixed coordinates stay as given
-    free : (n, 3) bool, the coordinates the solver may move (an (n,) mask frees whole nodes)
+    free : :class:`Coordinates`, or an (n, 3) bool mask of the coordinates the solver may
+        move (an (n,) mask frees whole nodes)
     energy_grad : ``X -> (E, dE/dX)`` in world units
     constraint_grad : ``X -> (c, dc/dX)``, ``(m,)`` and ``(m, n, 3)``, already scale-free
         (see :mod:`isochor.core.constraints`)
@@ -184,19 +241,15 @@ class LevelProblem:
 
     def __init__(self, nodes, free, energy_grad, constraint_grad, center, size):
         self.template = np.array(nodes, dtype=np.float64)
-        free = np.asarray(free, dtype=bool)
-        self.free = np.broadcast_to(free[:, None] if free.ndim == 1 else free, self.template.shape)
+        self.coords = free if isinstance(free, Coordinates) else Coordinates(free, center, size)
         self.energy_grad, self.constraint_grad = energy_grad, constraint_grad
-        self.center, self.size = np.asarray(center, dtype=np.float64), float(size)
-        self._origin = np.broadcast_to(self.center, self.template.shape)[self.free]
+        self.size = self.coords.size
 
     def to_y(self, nodes: np.ndarray) -> np.ndarray:
-        return (np.asarray(nodes, dtype=np.float64)[self.free] - self._origin) / self.size
+        return self.coords.to_y(nodes)
 
     def to_nodes(self, y: np.ndarray) -> np.ndarray:
-        out = self.template.copy()
-        out[self.free] = self._origin + self.size * y
-        return out
+        return self.coords.to_nodes(y, self.template)
 
     def terms(self, y: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
         """Normalised energy, its gradient, the constraints c (m,) and their gradients
@@ -204,8 +257,8 @@ class LevelProblem:
         x = self.to_nodes(y)
         e, de = self.energy_grad(x)
         c, dc = self.constraint_grad(x)
-        s = self.size
-        return e / s**2, de[self.free] / s, np.asarray(c, dtype=np.float64), dc[:, self.free] * s
+        s, reduce = self.size, self.coords.reduce
+        return e / s**2, reduce(de) / s, np.asarray(c, dtype=np.float64), reduce(dc) * s
 
     def deviation(self, y: np.ndarray) -> np.ndarray:
         return self.constraint_grad(self.to_nodes(y))[0]

@@ -105,7 +105,7 @@ def test_the_issue_example_parses():
         ("moves.0.speed", 1, "moves[0]: unknown key 'speed'"),
         ("tolerance.energy", 1, "tolerance: unknown key 'energy'"),
         ("model.scale", 2, "model: unknown key 'scale'"),
-        ("version", 3, "version"),
+        ("version", 4, "version"),
         ("version", "1", "version"),
         ("format", "something-else", "format"),
         ("model", ..., "missing key 'model'"),
