@@ -93,11 +93,6 @@ def load_model(path: str | Path) -> Model:
     return Model(tuple(build_pyramid(loaded.mesh)), tuple(loaded.warnings), source)
 
 
-#: a move may take a node at most this many lattice sizes away (a bigger one is a mistake
-#: of units or of typing, and its numbers would overflow long before it meant anything)
-MAX_MOVE = 1000.0
-
-
 def scenario_model(scenario: Scenario, loader: ModelLoader | None = None) -> Model:
     """The scenario's model: a built-in shape's levels, or its file loaded."""
     if "builtin" in scenario.model:
@@ -147,30 +142,8 @@ def build(
         lattice = Lattice.around(levels[-1].vertices, scenario.lattice_nodes, scenario.padding)
     else:
         lattice = Lattice(scenario.lattice_nodes, scenario.frame[0], scenario.frame[1])
-    nodes = lattice.rest_nodes.copy()
-    fixed = np.zeros((lattice.n_nodes, 3), dtype=bool)
-    for n, mv in enumerate(scenario.moves):
-        r = lattice.index(*mv.node)
-        nodes[r] = (nodes[r] + mv.by) if mv.by is not None else mv.to
-        fixed[r] = True
-        distance = float(np.linalg.norm(nodes[r] - lattice.rest_nodes[r]))
-        if distance > MAX_MOVE * lattice.size:
-            raise IsochorError(
-                f"moves[{n}]: moves node {list(mv.node)} by {distance:.3g}, more than "
-                f"{MAX_MOVE:g} times the lattice's size ({lattice.size:.3g}); a wrong unit?"
-            )
-    for p in scenario.pins:
-        fixed[lattice.index(*p)] = True
-    for p, axes in scenario.axis_pins:
-        fixed[lattice.index(*p), ["xyz".index(a) for a in axes]] = True
+    nodes, fixed = scenario.edit.apply(lattice)
     Mirror.of(lattice, scenario.symmetry)  # a frame the mirror cannot use fails here
-    for n, h in enumerate(scenario.handles):
-        distance = float(np.linalg.norm(np.subtract(h.to, h.at)))
-        if distance > MAX_MOVE * lattice.size:
-            raise IsochorError(
-                f"handles[{n}]: moves its point by {distance:.3g}, more than {MAX_MOVE:g} "
-                f"times the lattice's size ({lattice.size:.3g}); a wrong unit?"
-            )
     surface = EmbeddedSurface(lattice, levels)
     fit = coverage(lattice, surface.full.vertices)
     return Problem(scenario, surface, nodes, fixed, model, fit)

@@ -54,17 +54,16 @@ from typing import Any
 from .atomic import atomic_write_text
 from .constraints import ANCHORS, PRESERVE, SYMMETRIES, Goal, check_ratio
 from .defaults import LATTICE_NODES, PADDING, TOL_NODES, TOL_VOLUME
+from .edits import Edit, Move
 from .errors import IsochorError
 from .formats import is_model
 from .handles import Handle
 from .lattice import MAX_NODES, MIN_NODES
 from .validate import (
-    as_list,
     check_keys,
     flag,
     input_file,
     int_triple,
-    node_index,
     number,
     parse_constant,
     parse_int,
@@ -91,15 +90,6 @@ MAX_SCENARIO_BYTES = 16 * 2**20
 #: the tolerances: the range the solver is meant for (the volume ratio's is
 #: :data:`isochor.core.constraints.RATIO_RANGE`)
 TOLERANCE_RANGE = (1e-12, 0.5)
-
-
-@dataclass(frozen=True)
-class Move:
-    """Node (i, j, k) moved ``by`` an offset or ``to`` a position (exactly one is set)."""
-
-    node: tuple[int, int, int]
-    by: tuple[float, float, float] | None = None
-    to: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -191,20 +181,7 @@ class Scenario:
                 vec3(fr["origin"], "lattice.frame.origin"),
                 tuple(vec3(a, f"lattice.frame.axes[{n}]") for n, a in enumerate(axes)),
             )
-        moves = []
-        for n, mv in enumerate(as_list(doc.get("moves", []), "moves")):
-            where = f"moves[{n}]"
-            check_keys(mv, where, {"node", "by", "to"}, {"node"})
-            if ("by" in mv) == ("to" in mv):
-                raise IsochorError(f"{where}: give exactly one of 'by' or 'to'")
-            node = node_index(mv["node"], f"{where}.node", shape)
-            if any(m.node == node for m in moves):
-                raise IsochorError(f"{where}.node: node {list(node)} is already moved")
-            if "by" in mv:
-                moves.append(Move(node, by=vec3(mv["by"], f"{where}.by")))
-            else:
-                moves.append(Move(node, to=vec3(mv["to"], f"{where}.to")))
-        pins, axis_pins = _pins(as_list(doc.get("pins", []), "pins"), shape, version)
+        edit = Edit.from_json(doc, shape, version)
         ratio = number(doc.get("target_volume_ratio", 1.0), "target_volume_ratio")
         ratio = check_ratio(ratio, "target_volume_ratio")
         preserve = word(doc.get("preserve", "total"), "preserve", PRESERVE)
@@ -212,12 +189,6 @@ class Scenario:
         keep_centroid = flag(doc.get("keep_centroid", False), "keep_centroid")
         fold_guard = flag(doc.get("fold_guard", True), "fold_guard")
         symmetry = word(doc.get("symmetry", "none"), "symmetry", SYMMETRIES)
-        handles = []
-        for n, hd in enumerate(as_list(doc.get("handles", []), "handles")):
-            check_keys(hd, f"handles[{n}]", {"at", "to"}, {"at", "to"})
-            handles.append(
-                Handle(vec3(hd["at"], f"handles[{n}].at"), vec3(hd["to"], f"handles[{n}].to"))
-            )
         tol = doc.get("tolerance", {})
         check_keys(tol, "tolerance", {"volume", "nodes"}, set())
         tv = number(tol.get("volume", TOL_VOLUME), "tolerance.volume", TOLERANCE_RANGE)
@@ -227,9 +198,9 @@ class Scenario:
             shape,
             padding,
             frame,
-            tuple(moves),
-            pins,
-            axis_pins,
+            edit.moves,
+            edit.pins,
+            edit.axis_pins,
             ratio,
             tv,
             tn,
@@ -237,7 +208,7 @@ class Scenario:
             keep_centroid,
             anchor,
             fold_guard,
-            tuple(handles),
+            edit.handles,
             symmetry,
             Path(base_dir) if base_dir is not None else None,
         )
@@ -253,6 +224,11 @@ class Scenario:
             self.fold_guard,
             self.symmetry,
         )
+
+    @property
+    def edit(self) -> Edit:
+        """The moves, pins and handles."""
+        return Edit(self.moves, self.pins, self.axis_pins, self.handles)
 
     @property
     def version(self) -> int:
@@ -272,30 +248,18 @@ class Scenario:
                 "origin": list(self.frame[0]),
                 "axes": [list(a) for a in self.frame[1]],
             }
-        moves = []
-        for mv in self.moves:
-            d: dict[str, Any] = {"node": list(mv.node)}
-            if mv.by is not None:
-                d["by"] = list(mv.by)
-            else:
-                d["to"] = list(mv.to)
-            moves.append(d)
-        pins: list[Any] = [list(p) for p in self.pins]
-        pins += [{"node": list(p), "axes": axes} for p, axes in self.axis_pins]
         doc = {
             "format": FORMAT,
             "version": self.version,
             "model": dict(self.model),
             "lattice": lattice,
-            "moves": moves,
-            "pins": pins,
+            **self.edit.to_json(),
             "target_volume_ratio": self.target_volume_ratio,
             "tolerance": {"volume": self.tol_volume, "nodes": self.tol_nodes},
         }
         if self.version > 1:
             doc.update({k: getattr(self, k) for k in GOAL_DEFAULTS})
         if self.version > 2:
-            doc["handles"] = [{"at": list(h.at), "to": list(h.to)} for h in self.handles]
             doc["symmetry"] = self.symmetry
         return doc
 
@@ -352,29 +316,3 @@ class Scenario:
 
     def with_(self, **changes) -> Scenario:
         return replace(self, **changes)
-
-
-def _pins(items: list, shape: tuple[int, int, int], version: int) -> tuple[tuple, tuple]:
-    """The plain pins (all axes) and the axis pins of a ``pins`` list."""
-    pins, axis_pins, seen = [], [], set()
-    for n, p in enumerate(items):
-        where = f"pins[{n}]"
-        if isinstance(p, dict):
-            if version == 1:
-                raise IsochorError(f'{where}: a pin with axes needs "version": 2')
-            check_keys(p, where, {"node", "axes"}, {"node", "axes"})
-            node = node_index(p["node"], f"{where}.node", shape)
-            axes = p["axes"]
-            if not isinstance(axes, str) or not axes or set(axes) - set("xyz"):
-                raise IsochorError(f'{where}.axes: must be some of "xyz", like "z" or "xy"')
-            axes = "".join(a for a in "xyz" if a in axes)
-        else:
-            node, axes = node_index(p, where, shape), "xyz"
-        if node in seen:
-            raise IsochorError(f"{where}: node {list(node)} is already pinned")
-        seen.add(node)
-        if axes == "xyz":
-            pins.append(node)
-        else:
-            axis_pins.append((node, axes))
-    return tuple(pins), tuple(axis_pins)

@@ -35,7 +35,8 @@ import pytest
 
 from isochor.core.constraints import RATIO_RANGE
 from isochor.core.defaults import TOL_VOLUME
-from isochor.core.problem import MAX_MOVE, build
+from isochor.core.edits import MAX_MOVE
+from isochor.core.problem import build
 from isochor.core.scenario import Scenario
 from tests import test_contract as contract
 from tests.models import available, model
