@@ -194,6 +194,11 @@ def _parser() -> argparse.ArgumentParser:
     )
     solve.add_argument("--report", type=Path, metavar="JSON", help="the report (JSON)")
     solve.add_argument("--quiet", "-q", action="store_true", help="no per-level table")
+    solve.add_argument(
+        "--sequence",
+        metavar="PATTERN",
+        help="solve the scenario's poses: one file per frame (frame_####.obj) or one animated .glb",
+    )
     goal = solve.add_argument_group("what the solve holds (each overrides the scenario's)")
     goal.add_argument(
         "--target", type=float, metavar="RATIO", help="the volume to reach, / the model's"
@@ -275,6 +280,10 @@ def _solve(args: argparse.Namespace) -> int:
     scenario = _with_goal(scenario, args)
     if "path" in scenario.model:
         inputs.append((scenario.model_path(), "the model"))
+    if args.sequence is not None:
+        from .sequencecli import run_sequence
+
+        return run_sequence(args, scenario, inputs, source)
     # every output is checked against the inputs and the others before any work
     wanted = [(p, role) for p, role in ((args.out, "--out"), (args.report, "--report")) if p]
     outputs = check_outputs(wanted, inputs)

@@ -35,12 +35,15 @@ from .handles import Handle
 from .lattice import Lattice
 from .mesh import TriMesh
 from .multilevel import solve as solve_levels
+from .poses import Pose, Timeline
 from .problem import Model, Problem, build, default_lattice_shape, scenario_model
 from .pyramid import build_pyramid
 from .records import Progress, SolveResult
 from .repair import clean_closed_surface
 from .report import make_report
-from .scenario import GOAL_DEFAULTS, VERSION, Move, Scenario
+from .scenario import VERSION, Move, Scenario
+from .sequence import Sequence as Solved
+from .sequence import solve_sequence
 
 Node = tuple[int, int, int]
 
@@ -139,7 +142,7 @@ class Session:
         goal = {"preserve": preserve, "keep_centroid": keep_centroid, "anchor": anchor}
         goal.update(fold_guard=fold_guard, symmetry=symmetry)
         changes.update({k: v for k, v in goal.items() if v is not None})
-        scenario = _checked(scenario, changes)
+        scenario = scenario.checked(changes)
         self.problem: Problem = build(scenario, model=model)
         self.nodes = self.problem.nodes.copy()
         #: (n, 3) bool: the fixed coordinates of every node
@@ -151,6 +154,8 @@ class Session:
         self.symmetry = scenario.symmetry
         #: the surface handles of the next solve (see :meth:`add_handle`)
         self.handles: list[Handle] = list(scenario.handles)
+        #: keyed poses (see :meth:`key`) and how :meth:`frames` plays them
+        self.poses: list[Pose] = list(scenario.timeline.poses) if scenario.timeline else []
         self.result: SolveResult | None = None
 
     # -- the lattice ------------------------------------------------------------------------
@@ -220,6 +225,29 @@ class Session:
             to = self.lattice.deform(np.reshape(np.asarray(at, dtype=float), (1, 3)), self.nodes)[0]
         self.handles.append(Handle(at, to))
         return len(self.handles) - 1
+
+    def key(self, frame: int, *, target: float | None = None) -> None:
+        """Key the current edit (moved nodes, pins, handles; ``target``, or the session's
+        target ratio) at ``frame``, replacing a key there."""
+        pose = Pose(int(frame), self.scenario().edit, target)
+        self.poses = sorted([p for p in self.poses if p.frame != pose.frame] + [pose], key=_frame)
+
+    def timeline(self, start=None, end=None, *, rate=24.0, interpolation="linear") -> Timeline:
+        """The keyed poses as a timeline (from the first key to the last by default)."""
+        if not self.poses:
+            raise IsochorError("no poses keyed: call key(frame) first")
+        poses, _ = Timeline(tuple(self.poses), 0, 0).to_json()
+        settings = {"rate": rate, "interpolation": interpolation}
+        settings.update({k: v for k, v in (("start", start), ("end", end)) if v is not None})
+        return Timeline.from_json(poses, settings, self.lattice.shape, VERSION)
+
+    def frames(self, start=None, end=None, *, rate=24.0, interpolation="linear") -> Solved:
+        """Solve every frame of the keyed poses (each warm-started from the one before);
+        returns the :class:`~isochor.core.sequence.Sequence` (``.frames``, each with its
+        ``frame`` and ``result``)."""
+        timeline = self.timeline(start, end, rate=rate, interpolation=interpolation)
+        problem = replace(self.problem, scenario=self.scenario().with_(timeline=timeline))
+        return run_to_end(solve_sequence(problem))
 
     def move_handle(self, index: int, to: Sequence[float]) -> None:
         """Send handle ``index`` to ``to``."""
@@ -309,6 +337,7 @@ class Session:
             fold_guard=goal.fold_guard,
             handles=tuple(self.handles),
             symmetry=goal.symmetry,
+            timeline=self.timeline() if self.poses else None,
         )
 
     def save(self, path: str | Path) -> None:
@@ -319,35 +348,6 @@ class Session:
                 "a mesh from memory has no file a scenario can name; export it first"
             )
         self.scenario().write(path)
-
-
-def _checked(scenario: Scenario, changes: dict[str, Any]) -> Scenario:
-    """``scenario`` with ``changes``, each checked as the scenario file's field would be
-    (the same one-line errors: ``lattice.nodes: each axis needs 2 to 10 nodes``)."""
-    doc = scenario.to_dict()
-    doc["model"] = {"builtin": "sphere"}  # the model is not what is checked here
-    lat = doc["lattice"]
-    if "lattice_nodes" in changes:
-        lat["nodes"] = [
-            int(n) if isinstance(n, np.integer) else n for n in changes["lattice_nodes"]
-        ]
-    if "padding" in changes:
-        lat.pop("frame", None)
-        lat["padding"] = changes["padding"]
-    if "frame" in changes:
-        lat.pop("padding", None)
-        lat["frame"] = {"origin": changes["frame"][0], "axes": changes["frame"][1]}
-    if "target_volume_ratio" in changes:
-        doc["target_volume_ratio"] = changes["target_volume_ratio"]
-    for key in (*GOAL_DEFAULTS, "symmetry"):
-        if key in changes:
-            doc[key], doc["version"] = changes[key], VERSION
-    if "moves" in changes:
-        doc["moves"], doc["pins"] = [], []
-    checked = Scenario.from_dict(doc)
-    return replace(
-        checked, model=scenario.model, base_dir=scenario.base_dir, source=scenario.source
-    )
 
 
 def _open(path: Path) -> tuple[Scenario, Model]:
@@ -414,3 +414,7 @@ def deform(
         session.handles.append(Handle.of(h))
     result = session.solve()
     return Deformed(session.mesh, session.report, result)
+
+
+def _frame(pose: Pose) -> int:
+    return pose.frame

@@ -85,6 +85,53 @@ def make_report(
     }
 
 
+def sequence_report(problem: Problem, seq, source: str, time_s: float) -> dict[str, Any]:
+    """The JSON report of a solved sequence (:func:`isochor.core.sequence.solve_sequence`):
+    one row per frame and per key, and the top-level fields of :func:`make_report` for the
+    whole sequence at its worst (``converged`` only if every frame did, the largest
+    ``target_error``, the most folded frame, the first failing frame's message); ``nodes``
+    are the last frame's."""
+    frames = seq.frames
+    worst = max(frames, key=lambda f: abs(f.result.target_error))
+    folded = max(frames, key=lambda f: f.result.folds.fraction if f.result.folds else 0.0)
+    failed = [f for f in frames if not f.result.converged]
+    out = make_report(problem, frames[-1].result, source, time_s)
+    timeline = problem.scenario.timeline
+    out.update(
+        converged=seq.converged,
+        target_error=worst.result.target_error,
+        relative_volume_error=worst.result.rel_volume_error,
+        folded=_folds(folded.result.folds),
+        message=f"frame {failed[0].frame}: {failed[0].result.message}" if failed else "",
+        solve_time_s=seq.elapsed,
+        sequence={
+            "frames": len(frames),
+            "start": timeline.start,
+            "end": timeline.end,
+            "rate": timeline.rate,
+            "interpolation": timeline.interpolation,
+        },
+        frames=[_frame(f) for f in frames],
+        keys=[_frame(f) for f in seq.keys],
+    )
+    return out
+
+
+def _frame(f) -> dict[str, Any]:
+    r = f.result
+    return {
+        "frame": f.frame,
+        "converged": bool(r.converged),
+        "relative_volume_error": r.rel_volume_error,
+        "target_error": r.target_error,
+        "volume_final": r.volume_final,
+        "steps": sum(s.steps for s in r.levels),
+        "time_s": r.elapsed,
+        "handles_met": r.handles_met,
+        "message": r.message,
+    }
+
+
 def _folds(folds: Any) -> dict[str, float] | None:
     """The folded fractions (0 when nothing is turned inside out)."""
     if folds is None:

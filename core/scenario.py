@@ -22,6 +22,9 @@ Version 3 adds direct manipulation and symmetric editing::
       "symmetry": "x"                  or "y", "z", "none" (the default): the edit and the
                                        result are mirror images across the lattice's
                                        mid-plane (:mod:`isochor.core.symmetry`)
+      "poses": [{"frame": 12, "moves": [...], "pins": [...], "handles": [...],
+                 "target_volume_ratio": 0.9}],   keyframed edits (:mod:`isochor.core.poses`)
+      "timeline": {"start": 0, "end": 24, "rate": 24, "interpolation": "smooth"}
 
 Version 2 adds what a solve holds besides the volume (:class:`isochor.core.constraints.Goal`);
 a file that uses none of it is still written as version 1, and version 1 files read as
@@ -59,6 +62,7 @@ from .errors import IsochorError
 from .formats import is_model
 from .handles import Handle
 from .lattice import MAX_NODES, MIN_NODES
+from .poses import Timeline
 from .validate import (
     check_keys,
     flag,
@@ -83,7 +87,7 @@ GOAL_DEFAULTS = {
     "fold_guard": True,
 }
 #: the keys version 3 added
-V3_KEYS = ("handles", "symmetry")
+V3_KEYS = ("handles", "symmetry", "poses", "timeline")
 
 #: a scenario is a few kilobytes; anything larger than this is not one
 MAX_SCENARIO_BYTES = 16 * 2**20
@@ -111,6 +115,8 @@ class Scenario:
     fold_guard: bool = True
     handles: tuple[Handle, ...] = ()
     symmetry: str = "none"
+    #: keyframed poses and the frames to solve (:mod:`isochor.core.poses`), or None
+    timeline: Timeline | None = None
     base_dir: Path | None = field(default=None, compare=False)
     #: the file it was read from, for messages (None when built in memory)
     source: Path | None = field(default=None, compare=False)
@@ -189,6 +195,7 @@ class Scenario:
         keep_centroid = flag(doc.get("keep_centroid", False), "keep_centroid")
         fold_guard = flag(doc.get("fold_guard", True), "fold_guard")
         symmetry = word(doc.get("symmetry", "none"), "symmetry", SYMMETRIES)
+        timeline = Timeline.from_json(doc.get("poses", []), doc.get("timeline"), shape, version)
         tol = doc.get("tolerance", {})
         check_keys(tol, "tolerance", {"volume", "nodes"}, set())
         tv = number(tol.get("volume", TOL_VOLUME), "tolerance.volume", TOLERANCE_RANGE)
@@ -210,6 +217,7 @@ class Scenario:
             fold_guard,
             edit.handles,
             symmetry,
+            timeline,
             Path(base_dir) if base_dir is not None else None,
         )
 
@@ -234,7 +242,7 @@ class Scenario:
     def version(self) -> int:
         """The oldest version that can hold this scenario: 3 with handles or symmetry, 2 when
         a version 2 key differs from its default (or an axis pin is used), else 1."""
-        if self.handles or self.symmetry != "none":
+        if self.handles or self.symmetry != "none" or self.timeline is not None:
             return 3
         changed = any(getattr(self, k) != v for k, v in GOAL_DEFAULTS.items())
         return 2 if changed or self.axis_pins else 1
@@ -261,6 +269,8 @@ class Scenario:
             doc.update({k: getattr(self, k) for k in GOAL_DEFAULTS})
         if self.version > 2:
             doc["symmetry"] = self.symmetry
+        if self.timeline is not None:
+            doc["poses"], doc["timeline"] = self.timeline.to_json()
         return doc
 
     # -- files --------------------------------------------------------------------------
@@ -313,6 +323,32 @@ class Scenario:
         if not p.is_absolute() and self.base_dir is not None:
             p = self.base_dir / p
         return Path(os.path.abspath(p))
+
+    def checked(self, changes: dict[str, Any]) -> Scenario:
+        """``scenario`` with ``changes``, each checked as the scenario file's field would be
+        (the same one-line errors: ``lattice.nodes: each axis needs 2 to 10 nodes``)."""
+        doc = self.to_dict()
+        doc["model"] = {"builtin": "sphere"}  # the model is not what is checked here
+        lat = doc["lattice"]
+        if "lattice_nodes" in changes:
+            lat["nodes"] = [getattr(n, "item", lambda n=n: n)() for n in changes["lattice_nodes"]]
+        if "padding" in changes:
+            lat.pop("frame", None)
+            lat["padding"] = changes["padding"]
+        if "frame" in changes:
+            lat.pop("padding", None)
+            lat["frame"] = {"origin": changes["frame"][0], "axes": changes["frame"][1]}
+        if "target_volume_ratio" in changes:
+            doc["target_volume_ratio"] = changes["target_volume_ratio"]
+        for key in (*GOAL_DEFAULTS, "symmetry"):
+            if key in changes:
+                doc[key], doc["version"] = changes[key], VERSION
+        if "moves" in changes:  # a new lattice: the old edits name nodes it may not have
+            doc["moves"], doc["pins"] = [], []
+            doc.pop("poses", None)
+            doc.pop("timeline", None)
+        checked = Scenario.from_dict(doc)
+        return replace(checked, model=self.model, base_dir=self.base_dir, source=self.source)
 
     def with_(self, **changes) -> Scenario:
         return replace(self, **changes)
