@@ -87,8 +87,8 @@ def section(
     return lines
 
 
-def splice(text: str, block: str, markers: Sequence[str]) -> str:
-    """``text`` (a report) with its Constraints section replaced by ``block``; without one,
+def splice(text: str, block: str, markers: Sequence[str], heading: str = HEADING) -> str:
+    """``text`` (a report) with its section ``heading`` replaced by ``block``; without one,
     ``block`` goes before the peak-memory line, else before the hand-written marker (the
     first of ``markers`` found), else at the end. The rest of the report is kept as it is."""
     block = block.rstrip("\n") + "\n\n"
@@ -98,7 +98,7 @@ def splice(text: str, block: str, markers: Sequence[str]) -> str:
             end_of_generated = text.index(marker)
             break
     head, tail = text[:end_of_generated], text[end_of_generated:]
-    start = head.find(HEADING + "\n")
+    start = head.find(heading + "\n")
     if start < 0:
         at = head.find(PEAK_LINE)
         at = at if at >= 0 else len(head)
@@ -107,14 +107,16 @@ def splice(text: str, block: str, markers: Sequence[str]) -> str:
         return head[:at] + block + head[at:] + tail
     stop = len(head)
     for follower in ("\n## ", "\n" + PEAK_LINE):
-        i = head.find(follower, start + len(HEADING))
+        i = head.find(follower, start + len(heading))
         if 0 <= i < stop:
             stop = i + 1
     return head[:start] + block + head[stop:] + tail
 
 
-def write_section(out: Path, lines: Sequence[str], markers: Sequence[str]) -> None:
-    """Replace (or add) the Constraints section of the report at ``out``, keeping the rest;
+def write_section(
+    out: Path, lines: Sequence[str], markers: Sequence[str], heading: str = HEADING
+) -> None:
+    """Replace (or add) the section ``heading`` of the report at ``out``, keeping the rest;
     a new file gets the section and the hand-written marker (the first of ``markers``:
     :data:`benchmarks.report.KEEP_MARKER`, then the ones earlier versions wrote)."""
     from isochor.core.atomic import atomic_write_text
@@ -124,4 +126,4 @@ def write_section(out: Path, lines: Sequence[str], markers: Sequence[str]) -> No
     except OSError:
         text = f"# Benchmarks\n\n{markers[0]}\n"
     out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out, splice(text, "\n".join(lines), markers))
+    atomic_write_text(out, splice(text, "\n".join(lines), markers, heading))

@@ -35,6 +35,9 @@ from benchmarks.scale import (
     run_armadillo,
     scale_row,
 )
+from benchmarks.sequences import HEADING as SEQUENCES_HEADING
+from benchmarks.sequences import run_sequences
+from benchmarks.sequences import section as sequences_section
 from benchmarks.tables import (
     Table1Row,
     first_record_latency,
@@ -80,7 +83,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="do not draw Figures 5-8")
     p.add_argument(
         "--only",
-        choices=("constraints",),
+        choices=("constraints", "sequences"),
         default=None,
         help="run one section only; the report keeps its other sections and gets this one replaced",
     )
@@ -158,6 +161,18 @@ def only_constraints(
     return 0
 
 
+def only_sequences(models: Path, repeats: int, out: Path | None, command: str) -> int:
+    """``--only sequences``: a timeline against its frames solved cold, the section
+    replaced in place in the report."""
+    print("Sequences: keyframed poses against cold solves (medians)")
+    rows, notes = run_sequences(models, repeats)
+    if out is not None:
+        lines = sequences_section(rows, notes, command, repeats)
+        write_section(out, lines, (KEEP_MARKER, *OLD_MARKERS), SEQUENCES_HEADING)
+        print(f"\nWrote the section into {out}")
+    return 0
+
+
 def main(
     argv: Sequence[str] | None = None,
     *,
@@ -185,6 +200,8 @@ def main(
     command = " ".join(["python -m benchmarks", *argv])
     if args.only == "constraints":
         return only_constraints(models, repeats, quick, out, env, command)
+    if args.only == "sequences":
+        return only_sequences(models, min(repeats, 3), out, command)
     res = Results(env, quick, repeats, [], command=command)
 
     print("Table 1")

@@ -154,6 +154,7 @@ def solve(
     handles: Sequence[Handle] = (),
     options: SolverOptions | None = None,
     start_level: int | None = None,
+    near: bool = False,
 ) -> Generator[Progress, None, SolveResult]:
     """Move the free nodes to the least spring energy that meets the goal.
 
@@ -169,6 +170,9 @@ def solve(
         (:class:`isochor.core.handles.Handle`); under symmetry each gets its mirror image
     start_level : first pyramid level to solve on; by default the coarsest level with at
         least ``options.start_triangles`` triangles
+    near : ``nodes`` solve a nearby problem (the frame before, in a sequence): start on the
+        coarsest level whose constraints agree with the full mesh's there, with the
+        least-squares multipliers, as a re-solve does, even though the goal is not met yet
 
     Yields
     ------
@@ -273,7 +277,7 @@ def solve(
     )
 
     lam, sigma = np.zeros(first.count), opts.sigma0
-    warm = _warm_start(constraints, len(surface.levels), x, coords, energy_grad, opts)
+    warm = _warm_start(constraints, len(surface.levels), x, coords, energy_grad, opts, near)
     x_prev = x
     if warm is not None:  # already at the volume: skip the coarse levels whose optimum differs
         start_level, lam = max(start_level, warm[0]), warm[1]
@@ -371,7 +375,9 @@ def solve(
     return result(x, stats, terminal, lam, sigma, converged_level)
 
 
-def _warm_start(constraints, n, x, coords, energy_grad, opts) -> tuple[int, np.ndarray] | None:
+def _warm_start(
+    constraints, n, x, coords, energy_grad, opts, near=False
+) -> tuple[int, np.ndarray] | None:
     """Where to start when ``x`` already meets the goal (a re-solve, a small edit).
 
     Returns the coarsest level whose own constraints at ``x`` agree with the full mesh's to
@@ -379,18 +385,18 @@ def _warm_start(constraints, n, x, coords, energy_grad, opts) -> tuple[int, np.n
     ``x`` does not meet the goal (then the solve starts at the coarsest level with lambda 0).
     A converged result restarted this way stops after one level and no steps, instead of
     re-deriving a different equilibrium from the coarse levels (the paper's Plate 6).
-    ``constraints(k)`` are level k's constraints, of ``n`` levels.
+    ``constraints(k)`` are level k's constraints, of ``n`` levels. With ``near`` the goal
+    need not be met at ``x``: the level is the coarsest whose constraints differ from the
+    full mesh's by at most the tolerance.
     """
     c_full = constraints(-1).values(x)
-    if np.max(np.abs(c_full)) > opts.tol_volume:
+    if np.max(np.abs(c_full)) > opts.tol_volume and not near:
         return None
 
     def agrees(k):
         c = constraints(k).values(x)
-        return (
-            np.max(np.abs(c)) <= opts.volume_margin * opts.tol_volume
-            and np.max(np.abs(c - c_full)) <= opts.tol_volume
-        )
+        met = near or np.max(np.abs(c)) <= opts.volume_margin * opts.tol_volume
+        return met and np.max(np.abs(c - c_full)) <= opts.tol_volume
 
     k = next(k for k in range(n) if k == n - 1 or agrees(k))
     _, dc = constraints(k).values_and_jacobian(x)

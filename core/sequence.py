@@ -109,6 +109,7 @@ def solve_sequence(problem: Problem) -> Generator[Frame, None, Sequence]:
             goal=replace(goal, target_ratio=ratio),
             handles=handles,
             options=options,
+            near=True,
         )
         result = run_to_end(run)
         x = np.array(result.nodes)
