@@ -230,7 +230,8 @@ class Session:
         """Key the current edit (moved nodes, pins, handles; ``target``, or the session's
         target ratio) at ``frame``, replacing a key there."""
         pose = Pose(int(frame), self.scenario().edit, target)
-        self.poses = sorted([p for p in self.poses if p.frame != pose.frame] + [pose], key=_frame)
+        self.poses = [p for p in self.poses if p.frame != pose.frame] + [pose]
+        self.poses.sort(key=lambda p: p.frame)
 
     def timeline(self, start=None, end=None, *, rate=24.0, interpolation="linear") -> Timeline:
         """The keyed poses as a timeline (from the first key to the last by default)."""
@@ -414,7 +415,3 @@ def deform(
         session.handles.append(Handle.of(h))
     result = session.solve()
     return Deformed(session.mesh, session.report, result)
-
-
-def _frame(pose: Pose) -> int:
-    return pose.frame
