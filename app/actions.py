@@ -12,6 +12,7 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QToolBar
 
 from ..core.examples import EXAMPLES
+from . import handletools, tools
 
 #: (name, shortcut) of the standard views
 VIEWS = (
@@ -125,7 +126,14 @@ def _build_actions(win) -> None:
     _goal_actions(win)
     win.act_solve = A("&Solve Again", win.solve_again, K("Ctrl+R"))
     win.act_stop = A("S&top Solve", s.stop_solve, K("Ctrl+."))
-    win.act_frame = A("&Frame Model", vp.frame, K("F"))
+    win.act_frame = A(
+        "&Frame Selection",
+        vp.frame_selection,
+        K("F"),
+        tip="Fit the selected nodes in the view (the whole model when nothing is selected)",
+    )
+    tools.build(win, A)
+    handletools.build(win, A)
     win.act_views = {
         name: A(f"{name.title()} View", lambda _=False, n=name: vp.standard_view(n), K(key))
         for name, key in VIEWS
@@ -195,13 +203,20 @@ def _build_menus(win) -> None:
         win.act_select_all,
         win.act_box,
         None,
+        "tools",
+        None,
         win.act_pin,
         *win.act_pin_axes,
         win.act_pin_all,
         win.act_unpin_all,
         win.act_reset,
     ):
-        m.addSeparator() if a is None else m.addAction(a)
+        if a == "tools":
+            tools.add_to_edit_menu(win, m)
+            m.addAction(win.act_handle_tool)
+            m.addAction(win.act_remove_handle)
+        else:
+            m.addSeparator() if a is None else m.addAction(a)
     m = mb.addMenu("&Solve")
     for a in (
         win.act_preserve,
@@ -217,6 +232,7 @@ def _build_menus(win) -> None:
         m.addSeparator() if a is None else m.addAction(a)
     m = mb.addMenu("&View")
     m.addAction(win.act_frame)
+    m.addAction(win.act_ortho)
     for a in win.act_views.values():
         m.addAction(a)
     m.addSeparator()
@@ -244,6 +260,7 @@ def _build_toolbar(win) -> None:
         (win.act_redo, "Redo"),
         (win.act_box, "Box select"),
         (win.act_pin, "Pin"),
+        (win.act_handle_tool, "Handle"),
         (win.act_preserve, "Preserve volume"),
         (win.act_live, "Live"),
         (win.act_frame, "Frame"),
@@ -259,6 +276,7 @@ def _build_toolbar(win) -> None:
         None,
         win.act_box,
         win.act_pin,
+        win.act_handle_tool,
         None,
         win.act_preserve,
         win.act_live,

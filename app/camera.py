@@ -1,10 +1,15 @@
-"""The view's camera: standard views around the model's up axis and framing that fills the
-view. A mixin of :class:`~isochor.app.viewport.Viewport` (a pyvista plotter with a scene).
+"""The view's camera: standard views around the model's up axis, framing that fills the
+view, and the projection of world points to the widget (what picking uses). A mixin of
+:class:`~isochor.app.viewport.Viewport` (a pyvista plotter with a scene).
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pyvista as pv
+from PySide6.QtCore import QPoint, QPointF, QRect
+
+from . import picking
 
 AXES = {
     "x": np.array([1.0, 0.0, 0.0]),
@@ -14,8 +19,33 @@ AXES = {
 
 
 class CameraMixin:
-    """Needs ``self.scene``, ``self._up`` (a unit axis), ``self.projection()`` and the
-    plotter's camera."""
+    """Needs ``self.scene``, ``self.nodes``, ``self._up`` (a unit axis) and the plotter's
+    renderer and camera."""
+
+    # -- projection --------------------------------------------------------------------------
+    def projection(self) -> picking.Projection:
+        """The current world-to-widget projection (camera and window size)."""
+        ren = self.renderer
+        # The render window's size follows the widget only when VTK renders or resizes;
+        # take the widget's own size, as Qt lays it out now.
+        dpr = self.devicePixelRatioF()
+        w, h = self.width() * dpr, self.height() * dpr
+        aspect = w / h if h > 0 else 1.0
+        m = ren.camera.GetCompositeProjectionTransformMatrix(aspect, -1, 1)
+        vx0, vy0, vx1, vy1 = ren.GetViewport()
+        box = (vx0 * w, vy0 * h, (vx1 - vx0) * w, (vy1 - vy0) * h)
+        return picking.Projection(pv.array_from_vtkmatrix(m), box, self.height(), dpr)
+
+    def node_at(self, pos: QPointF | QPoint) -> int:
+        """Row of the node drawn under ``pos`` (the nearest within the pick radius), or -1."""
+        if not self.scene.show_lattice:
+            return -1
+        return picking.nearest(self.projection(), self.nodes, pos.x(), pos.y())
+
+    def nodes_in_rect(self, rect: QRect) -> np.ndarray:
+        return picking.in_rect(
+            self.projection(), self.nodes, rect.left(), rect.top(), rect.right(), rect.bottom()
+        )
 
     def _basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(forward-ish, side, up) world directions for the model's up axis."""

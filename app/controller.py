@@ -164,11 +164,12 @@ class EditorSession(QObject):
         self._solve_if_needed()
 
     # -- the drag ----------------------------------------------------------------------------
-    def begin_drag(self) -> bool:
+    def begin_drag(self, verb: str = "Move") -> bool:
+        """Start a drag (or a grab, rotate or scale: ``verb``) of the selection."""
         base = self.document.base_nodes()
         self._stop()
         self.document.live_nodes = base if self.document.preserve else None
-        drag = self.document.begin_drag()
+        drag = self.document.begin_drag(verb)
         if drag is None:
             return False
         self.activity = "dragging"
@@ -176,12 +177,33 @@ class EditorSession(QObject):
         self.statusChanged.emit()
         return True
 
+    def begin_handle_drag(self, index: int | None = None, at=None) -> bool:
+        """Start dragging handle ``index``'s target, or a new handle on the rest point
+        ``at``; the drag's moves, finish and cancel are a node drag's."""
+        base = self.document.base_nodes()
+        self._stop()
+        self.document.live_nodes = base if self.document.preserve else None
+        if self.document.begin_handle_drag(index, at) is None:
+            return False
+        self.activity = "dragging"
+        self._pending = (base, None)
+        self.statusChanged.emit()
+        return True
+
     def drag_to(self, delta) -> None:
+        """The dragged nodes moved by ``delta`` (3,) from where the drag started."""
+        self._drag_by("move", delta)
+
+    def drag_transform(self, matrix) -> None:
+        """The dragged nodes mapped by the (4, 4) affine ``matrix`` from where they were."""
+        self._drag_by("transform", matrix)
+
+    def _drag_by(self, how: str, value) -> None:
         drag = self.document.drag
         if drag is None:
             return
         live = self._live_active()
-        nodes = drag.move(delta, self.document.live_nodes if live else None)
+        nodes = getattr(drag, how)(value, self.document.live_nodes if live else None)
         self._pending = (nodes, None)
         if live and not self.live_timer.isActive():
             self.live_timer.start()
@@ -207,10 +229,8 @@ class EditorSession(QObject):
         if drag is None:
             return ""
         lock = f" — locked to the {lock}" if lock else ""
-        return (
-            f"Moving {plural(len(drag.rows))}{lock} — X/Y/Z lock an axis, "
-            "Shift+X/Y/Z a plane, Esc cancels"
-        )
+        what = plural(len(drag.rows)) if len(drag.rows) else "the handle"
+        return f"Moving {what}{lock} — X/Y/Z lock an axis, Shift+X/Y/Z a plane, Esc cancels"
 
     def _live_active(self) -> bool:
         return self.live and self.document.preserve
@@ -224,7 +244,7 @@ class EditorSession(QObject):
         base = self.document.live_nodes if self.document.live_nodes is not None else drag.nodes
         self._solving_cell = None
         self._live_preview = True
-        self._begin(drag.before.state, drag.with_dragged(base), drag.fixed())
+        self._begin(drag.before.state, drag.with_dragged(base), drag.fixed(), drag.handles)
 
     # -- solving -----------------------------------------------------------------------------
     def busy(self) -> bool:
@@ -260,12 +280,15 @@ class EditorSession(QObject):
         self._solving_cell = self.document.cell
         self._live_preview = False
         self.last_solve_input = (np.array(st.nodes), np.array(st.fixed_axes), st.goal)
-        self._begin(st, st.nodes, st.fixed_axes)
+        self._begin(st, st.nodes, st.fixed_axes, st.handles)
 
-    def _begin(self, st, nodes, fixed) -> None:
-        """Solve ``nodes`` with the (n, 3) ``fixed`` coordinates, to ``st``'s goal."""
+    def _begin(self, st, nodes, fixed, handles=()) -> None:
+        """Solve ``nodes`` with the (n, 3) ``fixed`` coordinates and the ``handles``, to
+        ``st``'s goal."""
         self._deferred = False
-        gen = self.worker.start(st.surface, nodes, fixed, goal=st.goal, options=st.problem.options)
+        gen = self.worker.start(
+            st.surface, nodes, fixed, goal=st.goal, options=st.problem.options, handles=handles
+        )
         self._accept_gen = gen
         if not self._live_preview:
             self.activity = "solving"

@@ -33,7 +33,10 @@ from ..core.lattice import MAX_NODES, MIN_NODES
 from ..core.mesh import TriMesh
 from ..core.problem import Problem, build, default_lattice_shape, scenario_model
 from ..core.scenario import Move, Scenario
+from .drag import DragSession
 from .goalrules import Edit, GoalRules
+from .handlerules import HandleRules
+from .selection import SelectionRules
 from .state import AXES, DocState, SolveSummary, StateCell, describe_status, initial_state, plural
 
 __all__ = [
@@ -50,53 +53,10 @@ __all__ = [
 ]
 
 
-class DragSession:
-    """A drag of the selected nodes: where it started and where the nodes are now.
-
-    ``free`` are the solver's nodes for the nodes not dragged: the start (no live solve) or
-    the newest live preview, given by the caller with every move.
-    """
-
-    def __init__(self, before: StateCell, rows: np.ndarray, base: np.ndarray) -> None:
-        self.before = before
-        self.rows = np.array(rows, dtype=int)
-        self.base = np.array(base, dtype=np.float64)
-        self.nodes = self.base.copy()
-
-    @property
-    def text(self) -> str:
-        return f"Move {plural(len(self.rows))}"
-
-    def move(self, delta, free: np.ndarray | None = None) -> np.ndarray:
-        """The nodes with the dragged ones at ``base + delta``; returns them."""
-        nodes = self.base.copy() if free is None else np.array(free, dtype=np.float64)
-        nodes[self.rows] = self.base[self.rows] + np.asarray(delta, dtype=np.float64)
-        self.nodes = nodes
-        return nodes
-
-    def with_dragged(self, nodes: np.ndarray) -> np.ndarray:
-        """``nodes`` (e.g. a live preview) with the dragged nodes where the cursor put them."""
-        out = np.array(nodes, dtype=np.float64)
-        out[self.rows] = self.nodes[self.rows]
-        return out
-
-    def fixed(self) -> np.ndarray:
-        """(n, 3) bool: the coordinates a live preview solve holds (the old fixed ones and
-        the dragged nodes)."""
-        fixed = self.before.state.fixed_axes.copy()
-        fixed[self.rows] = True
-        return fixed
-
-    def finish(self, free: np.ndarray | None = None) -> Edit:
-        """The edit the drag made; ``free`` are the newest live nodes, if any."""
-        nodes = self.nodes if free is None else self.with_dragged(free)
-        return Edit(self.before.state.moved_to(nodes, self.rows), self.text)
-
-
 Listener = Callable[[str], None]
 
 
-class Document(GoalRules):
+class Document(GoalRules, HandleRules, SelectionRules):
     """What the editor edits: the current state cell, the selection, the drag, the file.
 
     Events (a listener gets the name): ``"state"`` the current cell changed (an edit, undo,
@@ -116,6 +76,7 @@ class Document(GoalRules):
     def __init__(self, problem: Problem, *, path: Path | None = None, title: str = "") -> None:
         self.cell = StateCell(initial_state(problem))
         self.selection = np.zeros(0, dtype=int)
+        self.handle: int | None = None  #: the selected handle, if any
         self.drag: DragSession | None = None
         self.preserve = True
         self.live_nodes: np.ndarray | None = None
@@ -185,6 +146,8 @@ class Document(GoalRules):
             self._emit("scene")
         else:
             self.selection = self.selection[self.selection < cell.state.lattice.n_nodes]
+        if self.handle is not None and self.handle >= len(cell.state.handles):
+            self.handle = None
         self._emit("state")
 
     def needs_solve(self) -> bool:
@@ -232,6 +195,8 @@ class Document(GoalRules):
         if np.array_equal(rows, self.selection):
             return False
         self.selection = rows.astype(int)
+        if len(rows):
+            self.handle = None  # a node selection replaces a handle's
         self._emit("selection")
         return True
 
@@ -249,7 +214,10 @@ class Document(GoalRules):
         if abs(value - now) <= 1e-12 * max(1.0, abs(value)):
             return None
         nodes[rows, axis] += value - now
-        return Edit(self.state.moved_to(nodes, rows), f"Move {plural(len(rows))}")
+        new = self.state.moved_to(nodes, rows).mirrored(rows)
+        m = self.state.mirror
+        mirrored = ", mirrored" if m is not None and (m.partner[rows] != rows).any() else ""
+        return Edit(new, f"Move {plural(len(rows))}{mirrored}")
 
     def edit_pins(self, rows, pin: bool) -> Edit | None:
         """Pin (or unpin) ``rows``; None means every node."""
@@ -260,7 +228,7 @@ class Document(GoalRules):
         changes = (~st.pin_axes[rows].all(axis=1)).any() if pin else st.fixed[rows].any()
         if not changes:
             return None
-        new = st.edited(nodes=self.base_nodes()).pinned_as(rows, pin)
+        new = st.edited(nodes=self.base_nodes()).pinned_as(rows, pin).mirrored(rows)
         what = "all nodes" if len(rows) == st.lattice.n_nodes else plural(len(rows))
         return Edit(new, f"{'Pin' if pin else 'Unpin'} {what}")
 
@@ -284,17 +252,20 @@ class Document(GoalRules):
         )
 
     def edit_reset(self) -> Edit | None:
-        """Every node back to rest, nothing pinned (at rest there is nothing to solve)."""
+        """Every node back to rest, nothing pinned, no handle (at rest there is nothing to
+        solve)."""
         st = self.state
         n = st.lattice.n_nodes
         rest = st.lattice.rest_nodes
-        if not (st.pinned.any() or st.moved.any() or not np.array_equal(st.nodes, rest)):
+        changed = st.pinned.any() or st.moved.any() or st.handles
+        if not (changed or not np.array_equal(st.nodes, rest)):
             return None
         new = st.edited(
             nodes=rest,
             pin_axes=np.zeros((n, 3), bool),
             moved=np.zeros(n, bool),
             solved=st.target_ratio == 1.0,
+            handles=(),
         )
         return Edit(new, "Reset nodes")
 
@@ -325,17 +296,20 @@ class Document(GoalRules):
             np.zeros(n, bool),
             np.zeros(n, bool),
             ratio,
-            solved=ratio == 1.0,
+            solved=ratio == 1.0 and not self.state.handles,
+            handles=self.state.handles,
             **self.state.settings(),
         )
         return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape))
 
     # -- the drag --------------------------------------------------------------------------
-    def begin_drag(self) -> DragSession | None:
-        """Start dragging the selection from the nodes on screen."""
+    def begin_drag(self, verb: str = "Move") -> DragSession | None:
+        """Start dragging the selection from the nodes on screen (``verb``: the undo step's
+        first word)."""
         if len(self.selection) == 0:
             return None
-        self.drag = DragSession(self.cell, self.selection, self.base_nodes())
+        mirror = self.state.mirror
+        self.drag = DragSession(self.cell, self.selection, self.base_nodes(), verb, mirror)
         return self.drag
 
     def end_drag(self) -> Edit | None:
@@ -371,6 +345,7 @@ class Document(GoalRules):
             pins=pins,
             axis_pins=axis_pins,
             target_volume_ratio=float(st.target_ratio),
+            handles=st.handles,
             **st.settings(),
         )
 

@@ -1,8 +1,10 @@
 """What a mouse press in the 3D view started, as small typed records (no Qt widgets).
 
 A press becomes one of :class:`NodePress` (a click on a node, a drag once the mouse travels),
-:class:`BoxPress` (a rubber band), :class:`CameraPress`, :class:`ContextPress` or
-:class:`IgnorePress`; a node drag in progress is a :class:`NodeDrag`.
+:class:`HandlePress` (on a handle's marker), :class:`ModelPress` (on the model, with the
+Handle tool or Ctrl: a new handle), :class:`BoxPress` (a rubber band), :class:`CameraPress`,
+:class:`ContextPress` or :class:`IgnorePress`; a drag in progress (of nodes or of a
+handle's target) is a :class:`NodeDrag`.
 """
 
 from __future__ import annotations
@@ -19,6 +21,25 @@ class NodePress:
 
     row: int
     pos: QPointF
+
+
+@dataclass
+class HandlePress:
+    """A press on a handle's marker: a click selects it, a drag moves its target."""
+
+    index: int
+    pos: QPointF
+
+
+@dataclass
+class ModelPress:
+    """A press on the model that places a handle: a click places it, a drag places it and
+    moves its target at once. ``face`` and ``weights`` say where on the full mesh."""
+
+    pos: QPointF
+    face: int
+    weights: np.ndarray
+    point: np.ndarray  #: the world point as drawn
 
 
 @dataclass

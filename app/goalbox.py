@@ -1,5 +1,6 @@
-"""The Inspector's "Constraints" group: what the solve holds besides the volume, and what
-the last solve says about it (what it held, each body's volume, the centre of mass).
+"""The Inspector's "Constraints" group: what the solve holds besides the volume (and the
+symmetry of the edit), and what the last solve says about it (what it held, each body's
+volume, the centre of mass).
 
 The boxes only emit what the user clicked; the window commits the edit and shows the new
 state with :meth:`GoalBox.show_goal` (which never emits).
@@ -14,6 +15,8 @@ from . import style
 
 #: the volume choice's items: (text, the goal's ``preserve``)
 VOLUME_CHOICES = (("Total", "total"), ("Each body", "per-body"))
+#: the symmetry choice's items: (text, the goal's ``symmetry``)
+SYMMETRY_CHOICES = (("Off", "none"), ("X", "x"), ("Y", "y"), ("Z", "z"))
 
 ANCHOR_TIP = (
     "When your pins leave the lattice free to slide or turn, hold the lattice face farthest "
@@ -24,6 +27,11 @@ CENTROID_TIP = "Also keep the solid's centre of mass where it was (three more co
 VOLUME_TIP = (
     "Total: the whole model keeps its volume (one part may grow while another shrinks). "
     "Each body: every separate part keeps its own volume. Needs a model of several bodies."
+)
+SYMMETRY_TIP = (
+    "Mirror every move, pin, transform and handle across the lattice's middle plane "
+    "across X, Y or Z, so the result stays symmetric. Turning it on mirrors the side of "
+    "the selection (or the more edited side) onto the other."
 )
 FOLD_TIP = (
     "Push back when the deformation nearly turns part of the model inside out, so the "
@@ -38,12 +46,14 @@ class GoalBox(QGroupBox):
     centroidClicked(bool) : Keep centre of mass
     preserveChosen(str) : "total" or "per-body"
     foldGuardClicked(bool) : Fold guard
+    symmetryChosen(str) : "none", "x", "y" or "z"
     """
 
     anchorClicked = Signal(bool)
     centroidClicked = Signal(bool)
     preserveChosen = Signal(str)
     foldGuardClicked = Signal(bool)
+    symmetryChosen = Signal(str)
 
     def __init__(self, parent=None) -> None:
         super().__init__("Constraints", parent)
@@ -72,6 +82,19 @@ class GoalBox(QGroupBox):
         )
         row.addWidget(label)
         row.addWidget(self.volume_choice, 1)
+        srow = QHBoxLayout()
+        slabel = QLabel("S&ymmetry")
+        self.symmetry_choice = QComboBox()
+        for text, value in SYMMETRY_CHOICES:
+            self.symmetry_choice.addItem(text, value)
+        self.symmetry_choice.setToolTip(SYMMETRY_TIP)
+        slabel.setBuddy(self.symmetry_choice)
+        slabel.setToolTip(SYMMETRY_TIP)
+        self.symmetry_choice.activated.connect(
+            lambda i: self.symmetryChosen.emit(self.symmetry_choice.itemData(i))
+        )
+        srow.addWidget(slabel)
+        srow.addWidget(self.symmetry_choice, 1)
         self.fold_box = QCheckBox("F&old guard")
         self.fold_box.setToolTip(FOLD_TIP)
         self.fold_box.setChecked(True)
@@ -81,6 +104,7 @@ class GoalBox(QGroupBox):
         lay.addWidget(self.anchor_box)
         lay.addWidget(self.centroid_box)
         lay.addLayout(row)
+        lay.addLayout(srow)
         lay.addWidget(self.fold_box)
         self.held_note = QLabel("")
         self.held_note.setWordWrap(True)
@@ -108,6 +132,12 @@ class GoalBox(QGroupBox):
         self.volume_choice.setEnabled(several or state.preserve == "per-body")
         tip = VOLUME_TIP if several else VOLUME_TIP + " This model is one body."
         self.volume_choice.setToolTip(tip)
+
+    def show_symmetry(self, symmetry: str) -> None:
+        """Show the state's symmetry (never emits)."""
+        self.symmetry_choice.blockSignals(True)
+        self.symmetry_choice.setCurrentIndex(self.symmetry_choice.findData(symmetry))
+        self.symmetry_choice.blockSignals(False)
 
     def show_notes(self, held: str, stats: str) -> None:
         """What the far-side anchor holds, and the per-body and centre-of-mass statistics

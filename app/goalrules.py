@@ -10,13 +10,16 @@ when nothing would change.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..core.anchor import held_face
-from ..core.constraints import PRESERVE
+from ..core.constraints import PRESERVE, SYMMETRIES
 from ..core.errors import IsochorError
+from ..core.handles import handle_rows
+from .selection import face_name, ijk_table
 from .state import AXES, DocState, axes_words, plural
 
 #: the words of each setting's undo step: setting -> {value: words}
@@ -70,6 +73,44 @@ class GoalRules:
     def edit_fold_guard(self, on: bool) -> Edit | None:
         return self.edit_setting("fold_guard", bool(on))
 
+    # -- symmetry ------------------------------------------------------------------------
+    def edit_symmetry(self, symmetry: str) -> Edit | None:
+        """Mirror every edit across the lattice's mid-plane normal to ``symmetry`` ("x",
+        "y" or "z"), or stop ("none").
+
+        Turning it on makes the edit symmetric at once, as an artist mirroring a model
+        expects: one side's places, pins and moves are copied onto the other side (the side
+        of the selection; without one the side with more fixed nodes, else the low side),
+        and the undo step says which. Raises :class:`IsochorError` for a lattice frame that
+        is not aligned with x, y and z."""
+        if symmetry not in SYMMETRIES:
+            raise IsochorError(f"symmetry: must be one of {', '.join(SYMMETRIES)}")
+        st = self.state
+        if symmetry == st.symmetry:
+            return None
+        new = st.edited(nodes=self.base_nodes(), symmetry=symmetry)
+        m = new.mirror
+        if m is None:
+            return Edit(new, "Symmetry off")
+        rows, side = self._symmetry_side(new, m)
+        mirrored = new.mirrored(rows)
+        words = f"Symmetry across {symmetry}"
+        if not mirrored.same_edit(new):
+            words += f", the {side} side mirrored"
+        return Edit(mirrored, words)
+
+    def _symmetry_side(self, st: DocState, m) -> tuple[np.ndarray, str]:
+        """The half of the lattice to mirror onto the other, and its face's name."""
+        index = ijk_table(st.lattice)[:, m.axis]
+        middle = (st.lattice.shape[m.axis] - 1) / 2
+        halves = (np.flatnonzero(index < middle), np.flatnonzero(index > middle))
+        sel = self.selection
+        votes = [int(np.isin(sel, h).sum()) for h in halves]
+        if votes[0] == votes[1]:
+            votes = [int(st.fixed[h].sum()) for h in halves]
+        high = votes[1] > votes[0]
+        return halves[int(high)], face_name(m.axis, high).replace(" ", "-")
+
     # -- pins on some axes ---------------------------------------------------------------
     def edit_pin_axes(self, rows, axes: str) -> Edit | None:
         """Pin ``rows`` on exactly ``axes`` (some of ``"xyz"``; ``""`` unpins them): a node
@@ -82,7 +123,7 @@ class GoalRules:
         st = self.state
         if len(rows) == 0 or np.all(st.fixed_axes[rows] == mask):
             return None
-        new = st.edited(nodes=self.base_nodes()).pinned_on(rows, mask)
+        new = st.edited(nodes=self.base_nodes()).pinned_on(rows, mask).mirrored(rows)
         if not mask.any():
             return Edit(new, f"Unpin {plural(len(rows))}")
         if mask.all():
@@ -98,7 +139,7 @@ class GoalRules:
             return None
         mask = st.fixed_axes[rows].copy()
         mask[:, axis] = on
-        new = st.edited(nodes=self.base_nodes()).pinned_on(rows, mask)
+        new = st.edited(nodes=self.base_nodes()).pinned_on(rows, mask).mirrored(rows)
         verb = "Pin" if on else "Free"
         return Edit(new, f"{verb} {plural(len(rows))} on {AXES[axis]}")
 
@@ -116,10 +157,32 @@ class GoalRules:
             return none
         drag = self.drag
         if drag is not None:
-            return held_face(st.lattice, drag.nodes, drag.fixed())
+            return _held(st, drag.nodes, drag.fixed(), drag.handles)
         r = st.result
         if st.solved and r is not None and r.levels:
             mask = np.zeros(n, dtype=bool)
             mask[list(r.held)] = True
             return mask, r.held_face
-        return held_face(st.lattice, st.nodes, st.fixed_axes)
+        return _held(st, st.nodes, st.fixed_axes, st.handles)
+
+
+def _held(st: DocState, nodes, fixed, handles) -> tuple[np.ndarray, str]:
+    """What the solve of ``nodes`` with ``fixed`` and ``handles`` will hold, as
+    :func:`isochor.core.multilevel.solve` decides it (the edit made symmetric, the handles
+    with their mirror images)."""
+    lattice, mirror = st.lattice, st.mirror
+    handles = tuple(handles)
+    fixed = np.asarray(fixed, dtype=bool)
+    if mirror is not None:
+        # moves that are no mirror images: the solve will say why; show the edit as it is
+        with contextlib.suppress(IsochorError):
+            nodes, fixed = mirror.symmetric(nodes, fixed)
+        handles += tuple(mirror.handle(h) for h in handles)
+    return held_face(
+        lattice,
+        nodes,
+        fixed,
+        rows=handle_rows(lattice, handles)[0] if handles else None,
+        points=np.array([h.at for h in handles]).reshape(-1, 3),
+        mirror_axis=None if mirror is None else mirror.axis,
+    )

@@ -21,7 +21,7 @@ from PySide6.QtWidgets import QDockWidget, QMainWindow, QMenu, QMessageBox, QScr
 
 from .. import assets
 from ..core.errors import IsochorError
-from . import actions
+from . import actions, handletools, tools
 from .controller import EditorSession
 from .document import Document, plural
 from .files import FileCommands
@@ -135,6 +135,8 @@ class MainWindow(QMainWindow):
         vp.dragFinished.connect(self._drag_finished)
         vp.dragCanceled.connect(self._drag_canceled)
         vp.lockChanged.connect(lambda text: vp.show_info(s.drag_text(text)))
+        tools.connect(self)
+        handletools.connect(self)
         vp.contextMenuRequested.connect(
             lambda row, pos: self.exec_menu(self.context_menu(row), pos)
         )
@@ -201,6 +203,7 @@ class MainWindow(QMainWindow):
         st = self.state
         self.readout.show_state()
         self.panel.show_target(st.target_ratio * 100)
+        handletools.show(self)
         self._selection_changed()
         self._status_changed()
 
@@ -326,6 +329,7 @@ class MainWindow(QMainWindow):
             scene.set_ghost(self.act_ghost.isChecked())
             if scene.smooth != self.act_smooth.isChecked():
                 scene.set_smooth(self.act_smooth.isChecked())
+            self.viewport.show_gizmo()
         self.viewport.update()
 
     def context_menu(self, row: int) -> QMenu:
@@ -358,7 +362,7 @@ class MainWindow(QMainWindow):
         QMessageBox.critical(self, title, message)
 
     def show_controls(self) -> None:
-        QMessageBox.information(self, "Controls", CONTROLS_HTML)
+        QMessageBox.information(self, "Controls", tools.CONTROLS_HTML)
 
     def show_about(self) -> None:
         from .. import __version__
@@ -388,21 +392,3 @@ class MainWindow(QMainWindow):
         self.session.undo_stack.cleanChanged.disconnect(self.update_title)
         self.session.shutdown()
         self.viewport.close()
-
-
-CONTROLS_HTML = """
-<b>Mouse</b><br>
-Click a node: select it · Shift-click: add or remove it<br>
-Shift-drag on empty space (or Box select mode): select the nodes in a box<br>
-Drag a selected node: move the selection in the view plane<br>
-Left-drag on empty space: rotate · middle: pan · wheel or right-drag: zoom<br>
-Right click: pin menu<br><br>
-<b>While dragging</b><br>
-X / Y / Z: lock to that axis · Shift+X / Y / Z: lock to the plane across it<br>
-the same key again unlocks · Esc: cancel<br><br>
-<b>Keys</b><br>
-P: pin or unpin the selection (Edit menu: pin on one axis only) · F: frame<br>
-Home, 1, 3, 7 (Ctrl: opposite): views<br>
-B: box select · V: preserve volume · L: live solve · Ctrl+A: select all<br>
-Ctrl+Z / Ctrl+Shift+Z: undo / redo
-"""

@@ -1,5 +1,6 @@
 """The side panel: the selection (exact position, pin, pinned axes), solve options, what the
-solve holds (:class:`~isochor.app.goalbox.GoalBox`), lattice, display."""
+solve holds (:class:`~isochor.app.goalbox.GoalBox`), the surface handles
+(:class:`~isochor.app.handlebox.HandleBox`), lattice, display."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from ..core.constraints import RATIO_RANGE
 from ..core.lattice import MAX_NODES, MIN_NODES
 from . import style
 from .goalbox import GoalBox
+from .handlebox import HandleBox
 from .state import axes_words
 
 
@@ -163,7 +165,10 @@ class Panel(QWidget):
         lay.addWidget(solve)
         self.goal = GoalBox()
         guard_wheel(self.goal.volume_choice)
+        guard_wheel(self.goal.symmetry_choice)
         lay.addWidget(self.goal)
+        self.handles = HandleBox()
+        lay.addWidget(self.handles)
 
         # lattice
         lat = QGroupBox("Lattice")

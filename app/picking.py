@@ -156,3 +156,91 @@ def _line_parameter(proj, p, anchor, axis) -> float | None:
     if den < 1e-6:
         return None
     return float((b * (d @ w0) - (axis @ w0)) / den)
+
+
+def segment_distance(proj: Projection, a, b, x: float, y: float) -> float:
+    """Pixel distance from widget pixel (x, y) to the world segment ``a``-``b`` as drawn
+    (infinite when an end is behind the camera)."""
+    xy, _, visible = proj.project(np.array([a, b], dtype=np.float64))
+    if not visible.all():
+        return float("inf")
+    p, q = xy
+    d = q - p
+    length2 = float(d @ d)
+    t = 0.0 if length2 == 0 else float(np.clip(((x, y) - p) @ d / length2, 0.0, 1.0))
+    return float(np.hypot(*((x, y) - (p + t * d))))
+
+
+def _screen_triangles(proj: Projection, vertices, faces):
+    """The triangles as drawn: (f, 3, 2) widget pixels, (f, 3) depths, (f,) all visible."""
+    xy, depth, visible = proj.project(vertices)
+    faces = np.asarray(faces, dtype=np.int64)
+    return xy[faces], depth[faces], visible[faces].all(axis=1)
+
+
+def _covering(tri_xy, tri_depth, ok, x: float, y: float):
+    """The triangles that cover pixel (x, y): their rows, barycentric weights (k, 3) and the
+    depth there (k,)."""
+    lo, hi = tri_xy.min(axis=1), tri_xy.max(axis=1)
+    cand = np.flatnonzero(
+        ok & (lo[:, 0] <= x) & (hi[:, 0] >= x) & (lo[:, 1] <= y) & (hi[:, 1] >= y)
+    )
+    if len(cand) == 0:
+        return cand, np.zeros((0, 3)), np.zeros(0)
+    t = tri_xy[cand]
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    v0, v1 = b - a, c - a
+    v2 = np.array([x, y]) - a
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    good = np.abs(den) > 1e-12
+    den = np.where(good, den, 1.0)
+    wb = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+    wc = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+    wa = 1.0 - wb - wc
+    eps = -1e-9
+    inside = good & (wa >= eps) & (wb >= eps) & (wc >= eps)
+    w = np.c_[wa, wb, wc][inside]
+    depth = (w * tri_depth[cand[inside]]).sum(axis=1)
+    return cand[inside], w, depth
+
+
+def surface_hit(proj: Projection, vertices, faces, x: float, y: float):
+    """The front triangle of a mesh drawn under widget pixel (x, y).
+
+    Returns ``(face row, barycentric weights (3,), world point (3,))``, or None when the
+    pixel shows no triangle. The weights are of the triangle's world corners, so the same
+    weights on another embedding of the mesh (its rest shape) give the same surface point.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    rows, w2d, depth = _covering(*_screen_triangles(proj, vertices, faces), x, y)
+    if len(rows) == 0:
+        return None
+    i = int(np.argmin(depth))
+    face = faces[rows[i]]
+    # screen weights -> world weights: intersect the line of sight with the triangle's plane
+    o, d = proj.ray(x, y)
+    a, b, c = vertices[face]
+    n = np.cross(b - a, c - a)
+    den = float(d @ n)
+    if abs(den) > 1e-15 * max(1.0, float(np.linalg.norm(n))):
+        p = o + ((a - o) @ n / den) * d
+        m = np.c_[b - a, c - a]
+        st, *_ = np.linalg.lstsq(m, p - a, rcond=None)
+        w = np.array([1 - st[0] - st[1], st[0], st[1]])
+    else:
+        w = w2d[i]
+    return int(rows[i]), w, w @ vertices[face]
+
+
+def occluded(proj: Projection, points, vertices, faces, tolerance: float = 1e-5) -> np.ndarray:
+    """(p,) bool: the points a mesh hides, i.e. a triangle drawn over the point's pixel lies
+    in front of it (by more than ``tolerance`` in normalised depth)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    xy, depth, visible = proj.project(pts)
+    tri = _screen_triangles(proj, vertices, faces)
+    hidden = np.zeros(len(pts), dtype=bool)
+    for r in np.flatnonzero(visible):
+        _, _, d = _covering(*tri, xy[r, 0], xy[r, 1])
+        hidden[r] = bool(len(d) and d.min() < depth[r] - tolerance)
+    return hidden

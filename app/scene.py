@@ -14,9 +14,7 @@ import scipy.sparse as sp
 
 from ..core.volume import signed_volume
 from . import style
-
-NODE_SIZE = 15.0
-SELECTED_SIZE = 22.0
+from .glyphs import glyph_size, halo_actor, node_actor, role_shapes
 
 
 class Shading:
@@ -69,6 +67,14 @@ class Scene:
     @property
     def built(self) -> bool:
         return "model" in self.actors
+
+    def model_points(self) -> np.ndarray:
+        """(m, 3) the model's vertices as drawn (deformed)."""
+        return np.asarray(self._model.points)
+
+    def model_faces(self) -> np.ndarray:
+        """(f, 3) the model's triangles (the full mesh's)."""
+        return self._faces
 
     def bounds(self) -> np.ndarray:
         """(2, 3) lowest and highest corner of the model as drawn."""
@@ -145,30 +151,30 @@ class Scene:
             name="axis",
         )
 
+        self.node_size = glyph_size(lattice)
         self._nodes_poly = pv.PolyData(self.nodes.copy())
         self._nodes_poly.point_data["rgb"] = np.zeros((len(self.nodes), 3), dtype=np.uint8)
-        self.actors["nodes"] = p.add_mesh(
-            self._nodes_poly,
-            scalars="rgb",
-            rgb=True,
-            render_points_as_spheres=True,
-            point_size=NODE_SIZE,
-            show_scalar_bar=False,
-            render=False,
-            pickable=False,
-            name="nodes",
-        )
+        self._nodes_poly.point_data["shape"] = np.zeros(len(self.nodes), dtype=np.uint8)
+        self.actors["nodes"] = node_actor(self._nodes_poly, self.node_size)
+        p.add_actor(self.actors["nodes"], render=False, pickable=False, name="nodes")
         self._sel_poly = pv.PolyData(np.zeros((1, 3)))
-        self.actors["selected"] = p.add_mesh(
-            self._sel_poly,
-            color=style.SELECTED,
-            render_points_as_spheres=True,
-            point_size=SELECTED_SIZE,
+        self.actors["selected"] = halo_actor(self._sel_poly, self.node_size)
+        p.add_actor(self.actors["selected"], render=False, pickable=False, name="selected")
+        self.actors["selected_gap"] = halo_actor(self._sel_poly, self.node_size, ring=False)
+        p.add_actor(self.actors["selected_gap"], render=False, pickable=False, name="sel-gap")
+        for name in ("selected", "selected_gap"):
+            self.actors[name].SetVisibility(False)
+        self._mirror = pv.Plane(i_resolution=1, j_resolution=1)
+        self.actors["mirror"] = p.add_mesh(
+            self._mirror,
+            color=style.GUIDE,
+            opacity=0.13,
+            lighting=False,
             render=False,
             pickable=False,
-            name="selected",
+            name="mirror",
         )
-        self.actors["selected"].SetVisibility(False)
+        self.actors["mirror"].SetVisibility(False)
         self._guide = pv.Line((0, 0, 0), (1, 0, 0))
         self.actors["guide"] = p.add_mesh(
             self._guide,
@@ -189,6 +195,7 @@ class Scene:
         """Move the lattice (and the model, if ``points`` is given) to new positions."""
         self.nodes = np.array(nodes, dtype=np.float64)
         self._nodes_poly.points[:] = self.nodes
+        self._nodes_poly.Modified()
         self._springs_axis.points[:] = self.nodes
         self._springs_diag.points[:] = self.nodes
         if points is not None:
@@ -211,6 +218,8 @@ class Scene:
         rgb[pins.all(axis=1)] = _rgb(style.PINNED)
         rgb[moved] = _rgb(style.MOVED)
         self._nodes_poly.point_data["rgb"][:] = rgb
+        self._nodes_poly.point_data["shape"][:] = role_shapes(pins, moved)
+        self._nodes_poly.Modified()
 
     def node_colours(self) -> np.ndarray:
         """(n, 3) uint8: each node's colour as drawn."""
@@ -257,14 +266,40 @@ class Scene:
             self.show_diagonals = bool(diagonals)
         self._apply_visibility()
 
-    def set_guide(self, ends: np.ndarray | None) -> None:
-        """Show the axis-lock guide line between ``ends`` (2, 3), or hide it (None)."""
+    def set_guide(self, ends: np.ndarray | None, color: str = style.GUIDE) -> None:
+        """Show the axis-lock guide line between ``ends`` (2, 3) in ``color`` (the locked
+        axis's), or hide it (None)."""
         actor = self.actors.get("guide")
         if actor is None:
             return
         if ends is not None:
             self._guide.points[:] = ends
+            actor.GetProperty().SetColor(*(c / 255 for c in style.hex_to_rgb(color)))
         actor.SetVisibility(ends is not None)
+
+    def set_mirror(self, mirror) -> None:
+        """Draw the symmetry's mirror plane (a :class:`isochor.core.symmetry.Mirror`)
+        across the lattice box, faintly in its axis's colour; None hides it."""
+        actor = self.actors.get("mirror")
+        if actor is None:
+            return
+        actor.SetVisibility(mirror is not None)
+        if mirror is None:
+            return
+        lat = mirror.lattice
+        lo, hi = lat.origin, lat.origin + np.diag(lat.axes)
+        a, (b, c) = mirror.axis, [k for k in range(3) if k != mirror.axis]
+        corners = np.zeros((4, 3))
+        corners[:, a] = mirror.plane
+        corners[:, b] = [lo[b], hi[b], hi[b], lo[b]]
+        corners[:, c] = [lo[c], lo[c], hi[c], hi[c]]
+        self._mirror.copy_from(pv.PolyData(corners, faces=[4, 0, 1, 2, 3]))
+        rgb = style.hex_to_rgb(style.AXIS_COLOURS[mirror.name])
+        actor.GetProperty().SetColor(*(v / 255 for v in rgb))
+
+    def node_shapes(self) -> np.ndarray:
+        """(n,) uint8: each node's glyph as drawn (:mod:`isochor.app.glyphs`)."""
+        return np.array(self._nodes_poly.point_data["shape"])
 
     def _apply_visibility(self) -> None:
         self.actors["nodes"].SetVisibility(self.show_lattice)
@@ -273,16 +308,18 @@ class Scene:
         self._update_selection()
 
     def _update_selection(self) -> None:
-        actor = self.actors.get("selected")
+        actor, gap = self.actors.get("selected"), self.actors.get("selected_gap")
         if actor is None:
             return
         rows = self.selection[self.selection < len(self.nodes)]
-        if len(rows) == 0 or not self.show_lattice:
-            actor.SetVisibility(False)
+        on = len(rows) > 0 and self.show_lattice
+        actor.SetVisibility(on)
+        gap.SetVisibility(on)
+        if not on:
             return
         pts = self.nodes[rows]
         if self._sel_poly.n_points == len(pts):
             self._sel_poly.points[:] = pts
         else:
             self._sel_poly.copy_from(pv.PolyData(pts))
-        actor.SetVisibility(True)
+        self._sel_poly.Modified()

@@ -17,11 +17,15 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..core.constraints import Goal
+from ..core.handles import Handle, handles_sentence
 from ..core.problem import Problem
 from ..core.records import BodyVolume
 from ..core.scenario import GOAL_DEFAULTS
+from ..core.symmetry import Mirror
 
 AXES = "xyz"
+#: the goal's settings a state holds besides the target: the scenario's, and the symmetry
+SETTINGS = (*GOAL_DEFAULTS, "symmetry")
 
 
 def _ro(a, dtype=None) -> np.ndarray:
@@ -34,6 +38,14 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     """``a`` (a fresh array) made read-only: a view of a state is no way to edit it."""
     a.flags.writeable = False
     return a
+
+
+def lead_rows(mirror: Mirror, rows) -> np.ndarray:
+    """The ``rows`` whose places are mirrored onto their partners: all of them, but of a
+    pair of partners both in ``rows`` only the first (the other follows it)."""
+    rows = np.unique(np.asarray(rows, dtype=int))
+    partner = np.asarray(mirror.partner)[rows]
+    return rows[~np.isin(partner, rows) | (partner >= rows)]
 
 
 def plural(n: int, word: str = "node") -> str:
@@ -73,6 +85,8 @@ class SolveSummary:
     folds: object | None = field(default=None, compare=False, repr=False)
     bodies: tuple[BodyVolume, ...] = ()  #: per body, when the model has several
     centroid_shift: float | None = None  #: |C - C0| / size, with keep_centroid
+    #: where each handle's point ended (:class:`isochor.core.handles.HandleResult`)
+    handles: tuple = ()
 
     @classmethod
     def of(cls, result, n_levels: int) -> SolveSummary:
@@ -92,7 +106,13 @@ class SolveSummary:
             result.folds,
             tuple(result.bodies),
             result.centroid_shift,
+            tuple(getattr(result, "handles", ())),
         )
+
+    @property
+    def handles_sentence(self) -> str:
+        """ "" when every handle was met, else how far they were fitted."""
+        return handles_sentence(self.handles)
 
     @property
     def folded(self) -> bool:
@@ -125,9 +145,11 @@ class DocState:
     node pinned on z keeps its z and the solver moves it in x and y. Given an (n,) mask, a
     node is pinned on all three axes. A moved node is fixed on all three.
 
-    ``preserve``, ``keep_centroid``, ``anchor`` and ``fold_guard`` are the goal's (see
-    :class:`~isochor.core.constraints.Goal`); ``preserve`` is "total" or "per-body", not
-    the window's "Preserve volume" switch (``Document.preserve``).
+    ``preserve``, ``keep_centroid``, ``anchor``, ``fold_guard`` and ``symmetry`` are the
+    goal's (see :class:`~isochor.core.constraints.Goal`); ``preserve`` is "total" or
+    "per-body", not the window's "Preserve volume" switch (``Document.preserve``).
+    ``handles`` are the user's surface handles (their mirror images under symmetry are
+    added by the solve).
     """
 
     problem: Problem
@@ -141,6 +163,8 @@ class DocState:
     keep_centroid: bool = False
     anchor: str = "far-side"
     fold_guard: bool = True
+    symmetry: str = "none"
+    handles: tuple[Handle, ...] = ()
 
     def __post_init__(self) -> None:
         n = self.problem.surface.lattice.n_nodes
@@ -149,6 +173,7 @@ class DocState:
         pins = np.repeat(pins.reshape(n, 1), 3, axis=1) if pins.size == n else pins
         object.__setattr__(self, "pin_axes", _ro(np.reshape(pins, (n, 3)), bool))
         object.__setattr__(self, "moved", _ro(np.reshape(self.moved, n), bool))
+        object.__setattr__(self, "handles", tuple(Handle.of(h) for h in self.handles))
 
     @property
     def pinned(self) -> np.ndarray:
@@ -174,12 +199,36 @@ class DocState:
     def goal(self) -> Goal:
         """What the solve of this state must hold."""
         return Goal(
-            self.target_ratio, self.preserve, self.keep_centroid, self.anchor, self.fold_guard
+            self.target_ratio,
+            self.preserve,
+            self.keep_centroid,
+            self.anchor,
+            self.fold_guard,
+            self.symmetry,
         )
 
     def settings(self) -> dict:
-        """The goal's settings besides the target, as keyword arguments."""
-        return {k: getattr(self, k) for k in GOAL_DEFAULTS}
+        """The goal's settings besides the target (the symmetry too), as keyword
+        arguments."""
+        return {k: getattr(self, k) for k in SETTINGS}
+
+    @property
+    def mirror(self) -> Mirror | None:
+        """The symmetry's mirror (None with symmetry off)."""
+        return Mirror.of(self.lattice, self.symmetry)
+
+    def mirrored(self, rows) -> DocState:
+        """With symmetry on: the positions, pins and moved flags of ``rows`` copied onto
+        their mirror partners (nodes on the mirror plane put on it); else ``self``."""
+        m = self.mirror
+        rows = np.asarray(rows, dtype=int)
+        if m is None or len(rows) == 0:
+            return self
+        rows = lead_rows(m, rows)
+        nodes, pins = m.mirror_rows(self.nodes, self.pin_axes, rows)
+        moved = self.moved.copy()
+        moved[m.partner[rows]] = moved[rows]
+        return replace(self, nodes=nodes, pin_axes=pins, moved=moved)
 
     @property
     def surface(self):
@@ -231,6 +280,7 @@ class DocState:
             self.problem is other.problem
             and self.target_ratio == other.target_ratio
             and self.settings() == other.settings()
+            and self.handles == other.handles
             and np.array_equal(self.nodes, other.nodes)
             and np.array_equal(self.pin_axes, other.pin_axes)
             and np.array_equal(self.moved, other.moved)
@@ -261,11 +311,18 @@ def initial_state(problem: Problem) -> DocState:
         pins[lat.index(*p)] = True
     for p, axes in sc.axis_pins:
         pins[lat.index(*p), [AXES.index(a) for a in axes]] = True
-    # Nothing moved and the volume kept: the rest lattice is already the answer.
-    at_rest = not moved.any() and sc.target_volume_ratio == 1.0
-    settings = {k: getattr(sc, k) for k in GOAL_DEFAULTS}
+    # Nothing moved, no handle and the volume kept: the rest lattice is already the answer.
+    at_rest = not moved.any() and not sc.handles and sc.target_volume_ratio == 1.0
+    settings = {k: getattr(sc, k) for k in SETTINGS}
     return DocState(
-        problem, problem.nodes, pins, moved, sc.target_volume_ratio, solved=at_rest, **settings
+        problem,
+        problem.nodes,
+        pins,
+        moved,
+        sc.target_volume_ratio,
+        solved=at_rest,
+        handles=sc.handles,
+        **settings,
     )
 
 
@@ -301,8 +358,19 @@ def describe_status(state: DocState, *, preserve: bool, activity: str) -> tuple[
         "Converged",
         "good",
         f"Converged: |dV|/V0 = {abs(r.rel_volume_error):.1e} on the full mesh, "
-        f"{plural(r.free_nodes, 'free node')}.",
+        f"{plural(r.free_nodes, 'free node')}.{handles_note(r)}",
     )
+
+
+def handles_note(r: SolveSummary) -> str:
+    """What a result says about its handles: ``" 2 handles met."`` or the fit (" 2 handles
+    cannot all be met: fitted by least squares, ..."); "" without handles."""
+    if not r.handles:
+        return ""
+    fitted = r.handles_sentence
+    if fitted:
+        return f" {fitted[0].upper()}{fitted[1:]}."
+    return " The handle is met." if len(r.handles) == 1 else f" All {len(r.handles)} handles met."
 
 
 def fold_sentence(fraction: float) -> str:

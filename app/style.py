@@ -13,7 +13,11 @@ AXIS_PINNED = "#CC79A7"  # reddish purple: pinned on some axes, free on the othe
 MOVED = "#E69F00"  # orange: placed by the user, fixed until unpinned
 HELD = "#009E73"  # bluish green: held by the solver so the model does not drift
 SELECTED = "#F0E442"  # yellow, drawn larger
-GUIDE = "#CC79A7"  # reddish purple: axis-lock guide line
+GUIDE = "#CC79A7"  # reddish purple: a guide line of no one axis
+#: the world axes, as Blender and most 3D tools colour them: the gizmo's arrows and the
+#: guide line of a locked axis
+AXIS_COLOURS = {"x": "#F0435A", "y": "#7FCC1A", "z": "#3D8EF5"}
+HANDLE = "#FF8C1A"  # a brighter orange than MOVED: a surface handle's target (a big sphere)
 
 MODEL = "#d8d2c4"  # warm clay
 FOLDED = "#ff2d55"  # the part of the model a result turned inside out
@@ -33,17 +37,30 @@ def hex_to_rgb(color: str) -> tuple[int, int, int]:
     return int(c[0:2], 16), int(c[2:4], 16), int(c[4:6], 16)
 
 
-def legend_html() -> str:
-    """The node colour legend of the 3D view, as rich text."""
+#: the node shapes of each role, as the legend draws them (:mod:`isochor.app.glyphs`)
+SHAPES = {"sphere": "&#9679;", "cube": "&#9632;", "diamond": "&#9670;", "ringed": "&#9673;"}
 
-    def dot(color, label, big=False):
-        size = "15px" if big else "13px"
-        return f'<span style="color:{color}; font-size:{size}">&#9679;</span>&nbsp;{label}'
+
+def legend_html() -> str:
+    """The node legend of the 3D view (colour and shape of each role), as rich text."""
+
+    def mark(color, shape, label):
+        return f'<span style="color:{color}; font-size:14px">{SHAPES[shape]}</span>&nbsp;{label}'
 
     gap = "&nbsp;&nbsp;&nbsp;"
-    first = [dot(FREE, "free"), dot(PINNED, "pinned"), dot(MOVED, "moved (fixed)")]
-    second = [dot(AXIS_PINNED, "pinned on some axes"), dot(HELD, "held (far side)")]
-    return gap.join(first) + "<br>" + gap.join([*second, dot(SELECTED, "selected", True)])
+    first = [
+        mark(FREE, "sphere", "free"),
+        mark(PINNED, "cube", "pinned"),
+        mark(MOVED, "ringed", "moved (fixed)"),
+        f'<span style="color:{HANDLE}; font-size:18px">&#9679;</span>&nbsp;handle',
+    ]
+    halo = f'<span style="color:{SELECTED}; font-size:14px">&#9711;</span>&nbsp;selected'
+    second = [
+        mark(AXIS_PINNED, "diamond", "pinned on some axes"),
+        mark(HELD, "sphere", "held (far side)"),
+        halo,
+    ]
+    return gap.join(first) + "<br>" + gap.join(second)
 
 
 def apply_dark_theme(app) -> None:

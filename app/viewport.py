@@ -9,8 +9,13 @@ Mouse (left button)
 - on empty space: rotate the camera (the usual pyvista trackball); a click without moving
   clears the selection. Shift+drag on empty space (or any drag in box-select mode) draws a
   rubber band that selects the nodes inside it (Shift adds to the selection).
+- on a gizmo arrow: drag the selection along that axis; on a handle's marker: select it,
+  drag its target; on the model with the Handle tool (or Ctrl): place a handle, and drag
+  it at once (:mod:`isochor.app.handleview`).
 - middle button pans, the wheel zooms, right-drag zooms; a right click opens the context
-  menu of the node under the cursor (or of the selection).
+  menu of the handle or node under the cursor (or of the selection).
+
+Keys: G, R, S grab, rotate and scale the selection (:mod:`isochor.app.viewtools`).
 
 The view holds no editing state: it asks for selections and reports drags by signals, and
 draws what the window gives it (:class:`~isochor.app.scene.Scene` holds the actors). The
@@ -22,7 +27,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import pyvista as pv
 from PySide6.QtCore import QPoint, QPointF, QRect, QSize, Qt, Signal
 from PySide6.QtWidgets import QLabel, QRubberBand
 from pyvistaqt import QtInteractor
@@ -30,14 +34,26 @@ from pyvistaqt import QtInteractor
 from ..core.formats import is_model, is_scenario
 from . import picking, style
 from .camera import AXES, CameraMixin
-from .gestures import BoxPress, CameraPress, ContextPress, IgnorePress, NodeDrag, NodePress
+from .gestures import (
+    BoxPress,
+    CameraPress,
+    ContextPress,
+    HandlePress,
+    IgnorePress,
+    ModelPress,
+    NodeDrag,
+    NodePress,
+)
+from .handleview import HandleViewMixin
+from .overlays import Gizmo, HandleMarkers, Overlay
 from .scene import Scene
+from .viewtools import ToolsMixin
 
 #: The mouse must travel this many pixels before a press becomes a drag.
 DRAG_THRESHOLD = 3.0
 
 
-class Viewport(CameraMixin, QtInteractor):
+class Viewport(ToolsMixin, HandleViewMixin, CameraMixin, QtInteractor):
     """The pyvistaqt view with Isochor's actors and node interaction.
 
     Signals
@@ -51,6 +67,16 @@ class Viewport(CameraMixin, QtInteractor):
     contextMenuRequested(int, QPoint) : a right click on node row (-1: none), global pos
     fileDropped(str) : a model or scenario file was dropped on the view
     firstPainted() : the view was drawn for the first time
+    transformStarted(str) : a grab, rotate or scale began (or changed mode): the undo verb
+    transformMoved(object) : (4, 4) affine map of the selection from the gesture's start
+    hintChanged(str) : what the running gesture does, for the status line ("" when over)
+    handleSelected(int) : a click on handle i's marker
+    handlePlaced(int, object) : a click on the model placing a handle: full-mesh triangle,
+                                (3,) barycentric weights of the point
+    handleDragStarted(int, int, object) : a drag of handle i's target began (i, -1, None),
+                                or of a new handle's on the model (-1, triangle, weights);
+                                its moves are ``dragMoved``'s, its end ``dragFinished``'s
+    handleMenuRequested(int, QPoint) : a right click on handle i's marker, global pos
     """
 
     selectRequested = Signal(object, str)
@@ -62,6 +88,13 @@ class Viewport(CameraMixin, QtInteractor):
     contextMenuRequested = Signal(int, QPoint)
     fileDropped = Signal(str)
     firstPainted = Signal()
+    transformStarted = Signal(str)
+    transformMoved = Signal(object)
+    hintChanged = Signal(str)
+    handleSelected = Signal(int)
+    handlePlaced = Signal(int, object)
+    handleDragStarted = Signal(int, int, object)
+    handleMenuRequested = Signal(int, QPoint)
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent, auto_update=False, multi_samples=0)
@@ -69,7 +102,12 @@ class Viewport(CameraMixin, QtInteractor):
         self.setContextMenuPolicy(Qt.ContextMenuPolicy.PreventContextMenu)
         self.setMinimumSize(QSize(320, 240))
         self.scene = Scene(self)
+        self.overlay = Overlay(self)
+        self.gizmo = Gizmo(self.overlay)
+        self.handles = HandleMarkers(self.overlay)
         self.box_mode = False
+        self.visible_only = False  #: box selection skips the nodes the model hides
+        self._mouse: QPointF | None = None  # the last mouse position seen
         self._size = 1.0
         self._up = AXES["z"]
         self._press = None
@@ -109,7 +147,11 @@ class Viewport(CameraMixin, QtInteractor):
         self._size = float(surface.size)
         self._up = AXES[up]
         self._drag = None
+        self._transform = None
         self.scene.build(surface, nodes, pin_axes, moved)
+        self.set_gizmo_size(self._size)
+        self.handles.set_size(self._size)
+        self.show_gizmo()
         if reset_camera:
             self.home_view()
             # Until the view has its final size its aspect ratio is not known: frame again
@@ -118,11 +160,13 @@ class Viewport(CameraMixin, QtInteractor):
 
     def set_frame(self, nodes: np.ndarray, points: np.ndarray | None) -> None:
         self.scene.set_frame(nodes, points)
-        if self._drag is not None:
+        if self._drag is not None or self._transform is not None:
             self._update_guide()
+        self.show_gizmo()
 
     def set_selection(self, rows) -> None:
         self.scene.set_selection(rows)
+        self.show_gizmo()
         self.update()
 
     def show_info(self, text: str) -> None:
@@ -157,35 +201,11 @@ class Viewport(CameraMixin, QtInteractor):
             self._needs_home = False
             self.home_view()
 
-    # -- projection --------------------------------------------------------------------------
-    def projection(self) -> picking.Projection:
-        """The current world-to-widget projection (camera and window size)."""
-        ren = self.renderer
-        # The render window's size follows the widget only when VTK renders or resizes;
-        # take the widget's own size, as Qt lays it out now.
-        dpr = self.devicePixelRatioF()
-        w, h = self.width() * dpr, self.height() * dpr
-        aspect = w / h if h > 0 else 1.0
-        m = ren.camera.GetCompositeProjectionTransformMatrix(aspect, -1, 1)
-        vx0, vy0, vx1, vy1 = ren.GetViewport()
-        box = (vx0 * w, vy0 * h, (vx1 - vx0) * w, (vy1 - vy0) * h)
-        return picking.Projection(pv.array_from_vtkmatrix(m), box, self.height(), dpr)
-
-    def node_at(self, pos: QPointF | QPoint) -> int:
-        """Row of the node drawn under ``pos`` (the nearest within the pick radius), or -1."""
-        if not self.scene.show_lattice:
-            return -1
-        return picking.nearest(self.projection(), self.nodes, pos.x(), pos.y())
-
-    def nodes_in_rect(self, rect: QRect) -> np.ndarray:
-        return picking.in_rect(
-            self.projection(), self.nodes, rect.left(), rect.top(), rect.right(), rect.bottom()
-        )
-
     # -- dragging ----------------------------------------------------------------------------
     @property
     def dragging(self) -> bool:
-        return self._drag is not None
+        """A node drag, a gizmo drag or a grab, rotate or scale gesture runs."""
+        return self._drag is not None or self._transform is not None
 
     def _update_drag(self, pos: QPointF) -> None:
         drag = self._drag
@@ -215,15 +235,6 @@ class Viewport(CameraMixin, QtInteractor):
         self._update_guide()
         self.lockChanged.emit(drag.lock_text())
 
-    def _update_guide(self) -> None:
-        drag = self._drag
-        if drag is None or drag.axis is None or drag.plane:
-            self.scene.set_guide(None)
-            return
-        c = drag.anchor + drag.delta
-        a = AXES[drag.axis] * 3 * self._size
-        self.scene.set_guide(np.array([c - a, c + a]))
-
     def cancel_drag(self) -> None:
         if self._drag is None:
             return
@@ -240,12 +251,20 @@ class Viewport(CameraMixin, QtInteractor):
     # -- Qt events ---------------------------------------------------------------------------
     def mousePressEvent(self, ev) -> None:
         pos = ev.position()
+        self._mouse = QPointF(pos)
         shift = bool(ev.modifiers() & Qt.KeyboardModifier.ShiftModifier)
         self.setFocus(Qt.FocusReason.MouseFocusReason)
+        if self._transform is not None:  # a click confirms or cancels the gesture
+            self._transform_press(ev)
+            return
         if self._drag is not None:  # another button during a drag: ignore it
             return
         if ev.button() == Qt.MouseButton.LeftButton:
             row = self.node_at(pos)
+            if (row < 0 or row in self.selection) and not shift and self._gizmo_press(pos):
+                return
+            if not shift and self._handle_press(pos):
+                return
             if row >= 0:
                 if shift:
                     self.selectRequested.emit([row], "toggle")
@@ -254,6 +273,9 @@ class Viewport(CameraMixin, QtInteractor):
                 if row not in self.selection:
                     self.selectRequested.emit([row], "replace")
                 self._press = NodePress(row, pos)
+                return
+            ctrl = bool(ev.modifiers() & Qt.KeyboardModifier.ControlModifier)
+            if (self.handle_mode or ctrl) and not shift and self._model_press(pos):
                 return
             if shift or self.box_mode:
                 self._press = BoxPress(pos, shift)
@@ -269,7 +291,14 @@ class Viewport(CameraMixin, QtInteractor):
 
     def mouseMoveEvent(self, ev) -> None:
         pos = ev.position()
+        self._mouse = QPointF(pos)
         press = self._press
+        if self._transform is not None:
+            self._transform_mouse(pos)
+            return
+        if self._drag is not None and isinstance(press, IgnorePress):  # a gizmo arrow
+            self._update_drag(pos)
+            return
         if press is None:
             self._hover(pos)
             super().mouseMoveEvent(ev)
@@ -282,6 +311,8 @@ class Viewport(CameraMixin, QtInteractor):
                 self._drag = NodeDrag(press.pos, anchor, float(depth[0]), press.pos)
                 self.dragStarted.emit()
             self._update_drag(pos)
+        elif isinstance(press, (HandlePress, ModelPress)):
+            self._handle_move(press, pos)
         elif isinstance(press, BoxPress):
             self._band.setGeometry(QRect(press.pos.toPoint(), pos.toPoint()).normalized())
         elif not isinstance(press, IgnorePress):
@@ -290,6 +321,10 @@ class Viewport(CameraMixin, QtInteractor):
     def mouseReleaseEvent(self, ev) -> None:
         pos = ev.position()
         press, self._press = self._press, None
+        if self._drag is not None and isinstance(press, IgnorePress):  # a gizmo arrow
+            self._update_drag(pos)
+            self._end_drag()
+            return
         if press is None or isinstance(press, IgnorePress):
             if press is None:
                 super().mouseReleaseEvent(ev)
@@ -302,9 +337,13 @@ class Viewport(CameraMixin, QtInteractor):
                 self._end_drag()
             elif len(self.selection) > 1:
                 self.selectRequested.emit([press.row], "replace")
+        elif isinstance(press, (HandlePress, ModelPress)):
+            self._handle_release(press, pos)
         elif isinstance(press, BoxPress):
             self._band.hide()
             rows = self.nodes_in_rect(QRect(press.pos.toPoint(), pos.toPoint()).normalized())
+            if self.visible_only:
+                rows = self.visible_rows(rows)
             self.selectRequested.emit(rows, "add" if press.add else "replace")
         elif isinstance(press, CameraPress):
             super().mouseReleaseEvent(ev)
@@ -312,13 +351,12 @@ class Viewport(CameraMixin, QtInteractor):
                 self.selectRequested.emit([], "replace")
         elif isinstance(press, ContextPress):
             super().mouseReleaseEvent(ev)
-            if not moved:
+            if not moved and not self._handle_context(pos):
                 self.contextMenuRequested.emit(self.node_at(pos), self.mapToGlobal(pos.toPoint()))
         self._hover(pos)
 
     def _hover(self, pos: QPointF) -> None:
-        over = self.node_at(pos) >= 0
-        self.setCursor(Qt.CursorShape.OpenHandCursor if over else Qt.CursorShape.ArrowCursor)
+        self.setCursor(self._cursor(pos))
 
     # -- files dropped on the view (pyvistaqt would add them as extra actors) ----------------
     @staticmethod
@@ -344,6 +382,8 @@ class Viewport(CameraMixin, QtInteractor):
 
     def keyPressEvent(self, ev) -> None:
         key = ev.key()
+        if self._transform is not None and self._transform_key(ev):
+            return
         if self._drag is not None and not ev.isAutoRepeat():
             axis = {Qt.Key.Key_X: "x", Qt.Key.Key_Y: "y", Qt.Key.Key_Z: "z"}.get(key)
             if axis is not None:

@@ -113,19 +113,22 @@ class SolveWorker(QObject):
         goal: Goal | None = None,
         target_ratio: float = 1.0,
         options: SolverOptions | None = None,
+        handles=(),
     ) -> int:
         """Stop the running solve and start a new one; returns its generation id.
 
         ``fixed`` is (n,) bool (whole nodes) or (n, 3) bool (coordinates); ``goal`` is what
-        to hold (by default the volume at ``target_ratio``)."""
+        to hold (by default the volume at ``target_ratio``); ``handles`` are the surface
+        handles (:class:`isochor.core.handles.Handle`)."""
         self.stop()
         self._generation += 1
         nodes = np.array(nodes, dtype=np.float64)
         fixed = np.array(fixed, dtype=bool)
         goal = goal if goal is not None else Goal(target_ratio=target_ratio)
+        handles = tuple(handles)
 
         def make():
-            return solve(surface, nodes, fixed, goal=goal, options=options)
+            return solve(surface, nodes, fixed, goal=goal, handles=handles, options=options)
 
         job = _Job(self, self._generation, make)
         self._job = job

@@ -1049,6 +1049,7 @@ def test_initial_state_reads_axis_pins_and_the_goal():
         "keep_centroid": True,
         "anchor": "none",
         "fold_guard": False,
+        "symmetry": "none",
     }
     assert st.goal == prob.scenario.goal
     for a in (st.pin_axes, st.pinned, st.axis_pinned, st.fixed, st.fixed_axes):
@@ -1329,5 +1330,6 @@ def test_save_without_the_new_settings_writes_version_1_and_version_1_opens(doc,
         "keep_centroid": False,
         "anchor": "far-side",
         "fold_guard": True,
+        "symmetry": "none",
     }
     assert not opened.axis_pinned.any() and opened.pinned.sum() == 1

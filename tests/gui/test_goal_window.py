@@ -200,6 +200,7 @@ def test_a_folded_result_is_marked_on_the_model_and_undo_clears_it(qtbot, window
     z = win.viewport.nodes[top, 2] - 1.5 * lat.size
     type_into(win.panel.coord[2], f"{z:.4f}")
     assert win.undo_stack.undoText() == "Move 1 node"
+    win.doc.select([])  # the selection's gizmo has a red arrow: only the folds are red now
     wait_idle(qtbot, win, timeout=120_000)
 
     r = win.state.result
