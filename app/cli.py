@@ -113,6 +113,9 @@ def _status(exc: BaseException, debug: bool) -> int:
         return _fail(f"interrupted ({exc.name}); nothing was written", exc.status)
     if isinstance(exc, KeyboardInterrupt):
         return _fail("interrupted (SIGINT); nothing was written", 128 + 2)
+    if interrupts.state.raised is not None:  # a signal's exception that came out as another
+        signal = interrupts.Interrupted(interrupts.state.raised)
+        return _fail(f"interrupted ({signal.name}); nothing was written", signal.status)
     if isinstance(exc, SystemExit):  # --help, --version, a usage error: argparse has spoken
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     if isinstance(exc, MemoryError):

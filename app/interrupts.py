@@ -49,6 +49,10 @@ class State:
 
     armed = False
     pending: int | None = None
+    #: the signal the handler raised, if it did: the exception it raised may come out as
+    #: another one (a C extension being imported turns it into "ImportError: initialization
+    #: failed"), and the run must still end as interrupted
+    raised: int | None = None
     previous: dict[int, object] = {}
 
 
@@ -58,6 +62,7 @@ state = State()
 def _handler(signum: int, frame) -> None:
     if state.armed:
         state.armed = False  # once: the way out is never interrupted again
+        state.raised = signum
         raise Interrupted(signum)
     if state.pending is None:
         state.pending = signum
@@ -82,6 +87,7 @@ def arm() -> None:
     signum, state.pending = state.pending, None
     if signum is not None:
         state.armed = False
+        state.raised = signum
         raise Interrupted(signum)
 
 

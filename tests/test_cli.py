@@ -419,3 +419,18 @@ def test_version_and_no_bench_command(capsys):
     assert main(["--version"]) == 0
     assert capsys.readouterr().out == f"isochor {__version__}\n"
     assert main(["bench"]) == 2  # the benchmark is `make bench`, not shipped
+
+
+def test_a_signal_whose_exception_comes_out_as_another_is_still_an_interruption(capsys):
+    # a SIGINT that lands while a C extension is imported comes out as "ImportError:
+    # initialization failed"; it must end as interrupted (130), not as an internal error
+    from isochor.app import cli, interrupts
+
+    before = interrupts.state.raised
+    interrupts.state.raised = 2
+    try:
+        status = cli._status(ImportError("initialization failed"), debug=False)
+    finally:
+        interrupts.state.raised = before
+    assert status == 130
+    assert capsys.readouterr().err == "isochor: interrupted (SIGINT); nothing was written\n"
