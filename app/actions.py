@@ -12,7 +12,7 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QToolBar
 
 from ..core.examples import EXAMPLES
-from . import handletools, tools
+from . import handletools, timelinetools, tools
 
 #: (name, shortcut) of the standard views
 VIEWS = (
@@ -134,6 +134,7 @@ def _build_actions(win) -> None:
     )
     tools.build(win, A)
     handletools.build(win, A)
+    timelinetools.build(win, A)
     win.act_views = {
         name: A(f"{name.title()} View", lambda _=False, n=name: vp.standard_view(n), K(key))
         for name, key in VIEWS
@@ -241,6 +242,8 @@ def _build_menus(win) -> None:
     m.addSeparator()
     m.addAction(win.inspector_dock.toggleViewAction())
     m.addAction(win.plot_dock.toggleViewAction())
+    m.addAction(win.timeline_dock.toggleViewAction())
+    timelinetools.add_menu(win, mb)
     m = mb.addMenu("&Help")
     m.addAction(win.act_help)
     m.addAction(win.act_about)

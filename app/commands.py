@@ -14,6 +14,7 @@ from __future__ import annotations
 from PySide6.QtGui import QUndoCommand
 
 from .document import Document, StateCell
+from .timeline import pose_of, same_pose
 
 
 class EditCommand(QUndoCommand):
@@ -30,3 +31,24 @@ class EditCommand(QUndoCommand):
 
     def undo(self) -> None:
         self.document.set_cell(self.before)
+
+
+class GoToKeyCommand(EditCommand):
+    """Loading a key's edit as the working edit ("Go to key N"). Going from key to key
+    merges into one step, so scrubbing leaves one undo step that returns to the working edit
+    from before (none when it ends on that very edit)."""
+
+    ID = 1301
+
+    def id(self) -> int:
+        return self.ID
+
+    def mergeWith(self, other) -> bool:
+        if other.id() != self.ID:
+            return False
+        self.after = other.after
+        self.setText(other.text())
+        a, b = self.before.state, self.after.state
+        if a.problem is b.problem and same_pose(pose_of(a, 0), pose_of(b, 0), a.lattice):
+            self.setObsolete(True)  # back where it started: no step to undo
+        return True

@@ -389,6 +389,10 @@ class EditorSession(QObject):
             self._idle_owed = False
             self.idle.emit()
 
+    def redraw(self) -> None:
+        """Draw the current state again at the next frame (the timeline changed the view)."""
+        self._pending = (self.document.base_nodes(), None)
+
     def flush(self) -> None:
         """Hand out the pending frame now (before a screenshot)."""
         self._on_frame()

@@ -32,12 +32,14 @@ from ..core.formats import READ_FORMATS, SCENARIO_SUFFIXES, is_model, is_scenari
 from ..core.lattice import MAX_NODES, MIN_NODES
 from ..core.mesh import TriMesh
 from ..core.problem import Problem, build, default_lattice_shape, scenario_model
-from ..core.scenario import Move, Scenario
+from ..core.scenario import Scenario
 from .drag import DragSession
 from .goalrules import Edit, GoalRules
 from .handlerules import HandleRules
 from .selection import SelectionRules
-from .state import AXES, DocState, SolveSummary, StateCell, describe_status, initial_state, plural
+from .state import DocState, SolveSummary, StateCell, describe_status, initial_state, plural
+from .timeline import state_edit
+from .timelinerules import TimelineRules
 
 __all__ = [
     "Document",
@@ -56,7 +58,7 @@ __all__ = [
 Listener = Callable[[str], None]
 
 
-class Document(GoalRules, HandleRules, SelectionRules):
+class Document(GoalRules, HandleRules, SelectionRules, TimelineRules):
     """What the editor edits: the current state cell, the selection, the drag, the file.
 
     Events (a listener gets the name): ``"state"`` the current cell changed (an edit, undo,
@@ -272,8 +274,9 @@ class Document(GoalRules, HandleRules, SelectionRules):
     def edit_lattice(self, shape) -> Edit | None:
         """A new lattice of ``shape`` nodes around the same model, at rest.
 
-        Moves and pins are dropped (they name nodes of the old lattice); the model pyramid
-        is reused, and so is a problem built before for the same shape, with its caches.
+        Moves, pins and the timeline's keys are dropped (they name nodes of the old
+        lattice); the model pyramid is reused, and so is a problem built before for the same
+        shape, with its caches.
         """
         shape = tuple(int(s) for s in shape)
         if len(shape) != 3 or not all(MIN_NODES <= s <= MAX_NODES for s in shape):
@@ -281,7 +284,9 @@ class Document(GoalRules, HandleRules, SelectionRules):
         if shape == tuple(self.state.lattice.shape):
             return None
         old = self.problem
-        scenario = old.scenario.with_(lattice_nodes=shape, moves=(), pins=(), axis_pins=())
+        scenario = old.scenario.with_(
+            lattice_nodes=shape, moves=(), pins=(), axis_pins=(), timeline=None
+        )
         problem = self._problems.get(_key_of(scenario))
         if problem is None:
             problem = build(scenario, model=old.model)
@@ -298,9 +303,12 @@ class Document(GoalRules, HandleRules, SelectionRules):
             ratio,
             solved=ratio == 1.0 and not self.state.handles,
             handles=self.state.handles,
+            timeline=replace(self.state.timeline, keys=()),
             **self.state.settings(),
         )
-        return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape))
+        keys = len(self.state.timeline.keys)
+        dropped = f", {plural(keys, 'key')} dropped" if keys else ""
+        return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape) + dropped)
 
     # -- the drag --------------------------------------------------------------------------
     def begin_drag(self, verb: str = "Move") -> DragSession | None:
@@ -326,26 +334,17 @@ class Document(GoalRules, HandleRules, SelectionRules):
     # -- files -----------------------------------------------------------------------------
     def scenario(self) -> Scenario:
         """The current state as a scenario: moved nodes as ``to`` moves, pins (on all axes
-        or on some), the target and the goal's settings (a scenario that uses none of them
-        is written as version 1)."""
+        or on some), the target, the goal's settings and the timeline's keys (a scenario
+        that uses none of them is written as version 1)."""
         st = self.state
-        lat = st.lattice
-        moves = tuple(
-            Move(lat.ijk(r), to=tuple(float(x) for x in st.nodes[r]))
-            for r in np.flatnonzero(st.moved)
-        )
-        full = st.pin_axes.all(axis=1)
-        pins = tuple(lat.ijk(r) for r in np.flatnonzero(full & ~st.moved))
-        axis_pins = tuple(
-            (lat.ijk(r), "".join(a for a, on in zip(AXES, st.pin_axes[r]) if on))
-            for r in np.flatnonzero(st.axis_pinned)
-        )
+        edit = state_edit(st)
         return st.problem.scenario.with_(
-            moves=moves,
-            pins=pins,
-            axis_pins=axis_pins,
+            moves=edit.moves,
+            pins=edit.pins,
+            axis_pins=edit.axis_pins,
             target_volume_ratio=float(st.target_ratio),
             handles=st.handles,
+            timeline=st.timeline.core(),
             **st.settings(),
         )
 

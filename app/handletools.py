@@ -42,7 +42,7 @@ def connect(win) -> None:
     vp.handlePlaced.connect(lambda face, w: place(win, face, w))
     vp.handleDragStarted.connect(lambda i, face, w: _drag_started(win, i, face, w))
     vp.handleMenuRequested.connect(lambda i, pos: win.exec_menu(handle_menu(win, i), pos))
-    s.frameReady.connect(lambda nodes, _record: redraw(win, nodes))
+    s.frameReady.connect(lambda *_: redraw(win))  # the nodes as drawn (a timeline frame)
     s.selectionChanged.connect(lambda: show(win))
     s.solveDone.connect(lambda *_: report(win))
     bind(win.act_handle_tool, box.tool_box)

@@ -137,6 +137,7 @@ class MainWindow(QMainWindow):
         vp.lockChanged.connect(lambda text: vp.show_info(s.drag_text(text)))
         tools.connect(self)
         handletools.connect(self)
+        self.timeline.connect()
         vp.contextMenuRequested.connect(
             lambda row, pos: self.exec_menu(self.context_menu(row), pos)
         )
@@ -230,10 +231,13 @@ class MainWindow(QMainWindow):
     def _draw(self, nodes: np.ndarray, record=None) -> None:
         t0 = time.perf_counter()
         st = self.state
+        if self.timeline.shown is not None:  # a frame of the timeline, not the working edit
+            nodes, record = self.timeline.shown, None
         self.viewport.set_frame(nodes, st.surface.deform(nodes))
         self.viewport.update()
         self.redraws += 1
         self.readout.frame(record)
+        self.timeline.drawn()  # (a frame's own target volume)
         if record is not None:
             self.plot.update()
         self._show_selection()  # (the scene moved the selection markers with the nodes)
@@ -390,5 +394,6 @@ class MainWindow(QMainWindow):
         self._closed = True
         # nothing may reach this window once it is going away
         self.session.undo_stack.cleanChanged.disconnect(self.update_title)
+        self.timeline.shutdown()
         self.session.shutdown()
         self.viewport.close()

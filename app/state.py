@@ -22,6 +22,7 @@ from ..core.problem import Problem
 from ..core.records import BodyVolume
 from ..core.scenario import GOAL_DEFAULTS
 from ..core.symmetry import Mirror
+from .timeline import TimelineState
 
 AXES = "xyz"
 #: the goal's settings a state holds besides the target: the scenario's, and the symmetry
@@ -165,6 +166,7 @@ class DocState:
     fold_guard: bool = True
     symmetry: str = "none"
     handles: tuple[Handle, ...] = ()
+    timeline: TimelineState = TimelineState()  #: the keys and the timeline's settings
 
     def __post_init__(self) -> None:
         n = self.problem.surface.lattice.n_nodes
@@ -322,6 +324,7 @@ def initial_state(problem: Problem) -> DocState:
         sc.target_volume_ratio,
         solved=at_rest,
         handles=sc.handles,
+        timeline=TimelineState.of(sc),
         **settings,
     )
 

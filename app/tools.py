@@ -30,6 +30,11 @@ Esc or right click: cancel<br><br>
 <b>While dragging</b><br>
 X / Y / Z: lock to that axis · Shift+X / Y / Z: lock to the plane across it<br>
 the same key again unlocks · Esc: cancel<br><br>
+<b>Timeline</b><br>
+I: key the working pose at the current frame · Alt+I: remove the key there<br>
+In the view or on the scrubber: Left / Right: a frame · Up / Down: the next / previous
+key · Shift+Left / Right: the start / end · Space: play the solved frames<br>
+On a key frame its edit is the working edit; between keys the solved frame is shown<br><br>
 <b>Keys</b><br>
 P: pin or unpin the selection (Edit menu: pin on one axis only) · F: frame the selection<br>
 Edit > Select: a layer, row or face of the lattice · Ctrl+I: invert the selection<br>

@@ -120,8 +120,6 @@ class SolveWorker(QObject):
         ``fixed`` is (n,) bool (whole nodes) or (n, 3) bool (coordinates); ``goal`` is what
         to hold (by default the volume at ``target_ratio``); ``handles`` are the surface
         handles (:class:`isochor.core.handles.Handle`)."""
-        self.stop()
-        self._generation += 1
         nodes = np.array(nodes, dtype=np.float64)
         fixed = np.array(fixed, dtype=bool)
         goal = goal if goal is not None else Goal(target_ratio=target_ratio)
@@ -130,6 +128,15 @@ class SolveWorker(QObject):
         def make():
             return solve(surface, nodes, fixed, goal=goal, handles=handles, options=options)
 
+        return self.run(make)
+
+    def run(self, make: Callable) -> int:
+        """Stop the running job and iterate ``make()``, any generator (the frames of a
+        timeline, :func:`isochor.core.sequence.solve_sequence`), on a new thread: what it
+        yields comes as ``progress``, what it returns as ``finished``. Returns the
+        generation id."""
+        self.stop()
+        self._generation += 1
         job = _Job(self, self._generation, make)
         self._job = job
         job.thread.start()

@@ -66,7 +66,7 @@ def solve_sequence(problem: Problem) -> Generator[Frame, None, Sequence]:
     goal, options = sc.goal, problem.options
     keys: list[_Key] = []
     key_frames: list[Frame] = []
-    x = problem.nodes
+    x = lattice.rest_nodes  # the keys' free nodes start at rest, not at the working edit
     for n, pose in enumerate(timeline.poses):
         nodes, fixed = pose.edit.apply(lattice, f"poses[{n}].")
         start = np.where(fixed, nodes, x)

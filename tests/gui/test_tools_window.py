@@ -197,7 +197,8 @@ def test_mouse_driven_scale_and_rotate_confirm_with_a_click(qtbot, sphere):
     press_keys(vp, "s")
     for i in range(1, 7):
         hover(win, c + (60.0 + 10 * i, 0.0))  # twice as far from the centre
-    assert win.statusBar().currentMessage().startswith("Scale 2")
+    message = win.statusBar().currentMessage()  # "Scale 2 — ..." (whole pixels: about 2)
+    assert message.startswith("Scale ") and float(message.split()[1]) == pytest.approx(2, abs=0.02)
     end = c + (120.0, 0.0)
     QTest.mouseClick(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(end))
     assert not vp.transforming and win.undo_stack.undoText() == "Scale 9 nodes"
