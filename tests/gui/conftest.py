@@ -127,3 +127,23 @@ def save_shot(win, name: str, show=None) -> None:
     win.session.flush()
     QTest.qWait(150)  # the layouts of what the last state changed settle
     save_window_png(win, Path(folder) / f"{name}.png")
+
+
+#: a small scene the tool tests open (the built-in sphere, 4 levels, a 3x3x3 lattice)
+SPHERE = {"model": {"builtin": "sphere", "n_levels": 4}, "lattice": {"nodes": [3, 3, 3]}}
+
+
+@pytest.fixture
+def sphere(qtbot, themed_app):
+    """The window on :data:`SPHERE`, solved, active; closed afterwards without a prompt."""
+    from isochor.app.document import Document
+    from isochor.core.problem import build
+    from isochor.core.scenario import Scenario
+    from tests.gui.test_goal_window import activate
+
+    win = open_window(qtbot, Document(build(Scenario.from_dict(SPHERE))))
+    wait_idle(qtbot, win)
+    activate(qtbot, win)
+    yield win
+    win.undo_stack.setClean()
+    win.close()

@@ -12,26 +12,11 @@ import json
 import numpy as np
 import pytest
 
+from isochor.app.cli import run_solve
 from tests.gui.conftest import open_window, save_shot, wait_idle
 from tests.gui.test_editor import click, drag, point, screen_positions
-from tests.gui.test_goal_window import activate, rgb, undo_key
+from tests.gui.test_goal_window import rgb, undo_key
 from tests.gui.test_tools_window import press_keys
-
-SPHERE = {"model": {"builtin": "sphere", "n_levels": 4}, "lattice": {"nodes": [3, 3, 3]}}
-
-
-@pytest.fixture
-def sphere(qtbot, themed_app):
-    from isochor.app.document import Document
-    from isochor.core.problem import build
-    from isochor.core.scenario import Scenario
-
-    win = open_window(qtbot, Document(build(Scenario.from_dict(SPHERE))))
-    wait_idle(qtbot, win)
-    activate(qtbot, win)
-    yield win
-    win.undo_stack.setClean()
-    win.close()
 
 
 def on_model(win, dx=25, dy=-20):
@@ -262,8 +247,6 @@ def test_scale_gesture_under_symmetry_mirrors_onto_the_partners(qtbot, sphere):
 
 
 def test_two_handles_on_the_cow_solve_as_the_command_line_does(qtbot, themed_app, tmp_path):
-    from isochor.core.generators import run_to_end
-    from isochor.core.multilevel import solve
     from isochor.core.problem import build
     from isochor.core.scenario import Scenario
     from tests.models import model
@@ -299,16 +282,7 @@ def test_two_handles_on_the_cow_solve_as_the_command_line_does(qtbot, themed_app
 
     sc = Scenario.read(path)
     problem = build(sc)
-    headless = run_to_end(
-        solve(
-            problem.surface,
-            problem.nodes,
-            problem.fixed,
-            goal=sc.goal,
-            handles=sc.handles,
-            options=problem.options,
-        )
-    )
+    headless = run_solve(problem)  # the command line's own solve
     assert headless.converged
     assert np.allclose(st.nodes, headless.nodes, atol=1e-9 * problem.surface.size, rtol=0)
     for h, r in zip(sc.handles, headless.handles):

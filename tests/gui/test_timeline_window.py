@@ -14,25 +14,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from tests.gui.conftest import open_window, save_shot, wait_idle
+from tests.gui.conftest import SPHERE, open_window, save_shot, wait_idle
 from tests.gui.test_editor import pickable_node, point
 from tests.gui.test_goal_window import activate, rgb, type_into, undo_key
-
-SPHERE = {"model": {"builtin": "sphere", "n_levels": 4}, "lattice": {"nodes": [3, 3, 3]}}
-
-
-@pytest.fixture
-def sphere(qtbot, themed_app):
-    from isochor.app.document import Document
-    from isochor.core.problem import build
-    from isochor.core.scenario import Scenario
-
-    win = open_window(qtbot, Document(build(Scenario.from_dict(SPHERE))))
-    wait_idle(qtbot, win)
-    activate(qtbot, win)
-    yield win
-    win.undo_stack.setClean()
-    win.close()
 
 
 def key(win, k, mods=None):
