@@ -14,7 +14,7 @@ import pytest
 
 from tests.gui.conftest import open_window, save_shot, wait_idle
 from tests.gui.test_editor import click, pickable_node, point, screen_positions
-from tests.gui.test_goal_window import activate, drawn, rgb, undo_key
+from tests.gui.test_goal_window import drawn, rgb, undo_key
 
 KEYS = {
     ".": "Key_Period",
@@ -47,22 +47,6 @@ def hover(win, xy) -> None:
     from PySide6.QtTest import QTest
 
     QTest.mouseMove(win.viewport, point(xy))
-
-
-@pytest.fixture
-def sphere(qtbot, themed_app):
-    """The editor on a sphere in a 3x3x3 lattice, at rest, active."""
-    from isochor.app.document import Document
-    from isochor.core.problem import build
-    from isochor.core.scenario import Scenario
-
-    spec = {"model": {"builtin": "sphere", "n_levels": 4}, "lattice": {"nodes": [3, 3, 3]}}
-    win = open_window(qtbot, Document(build(Scenario.from_dict(spec))))
-    wait_idle(qtbot, win)
-    activate(qtbot, win)
-    yield win
-    win.undo_stack.setClean()
-    win.close()
 
 
 def layer_x(win, i: int = 2) -> np.ndarray:
