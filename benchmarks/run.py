@@ -18,6 +18,9 @@ import numpy as np
 from benchmarks.cases import EXAMPLES, FIGURES, Case, cow_case, example_case
 from benchmarks.constraint_cases import run_constraints
 from benchmarks.constraints_report import section, write_section
+from benchmarks.display import HEADING as DISPLAY_HEADING
+from benchmarks.display import run_display
+from benchmarks.display import section as display_section
 from benchmarks.profiling import SolveProfile, profile_solve
 from benchmarks.report import (
     DEFAULT_OUT,
@@ -83,7 +86,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="do not draw Figures 5-8")
     p.add_argument(
         "--only",
-        choices=("constraints", "sequences"),
+        choices=("constraints", "sequences", "display"),
         default=None,
         help="run one section only; the report keeps its other sections and gets this one replaced",
     )
@@ -173,6 +176,20 @@ def only_sequences(models: Path, repeats: int, out: Path | None, command: str) -
     return 0
 
 
+def only_display(models: Path, repeats: int, out: Path | None, command: str) -> int:
+    """``--only display``: issue 9's baseline, the section replaced in place."""
+    print("Display rate: the issue-9 baseline (medians)")
+    rows, notes = run_display(models, repeats)
+    for r in rows:
+        ms = r.timing.ms() if r.timing is not None else "-"
+        print(f"  {r.what}: {ms} ms; {r.target}; {r.verdict()}")
+    if out is not None:
+        lines = display_section(rows, notes, command, repeats)
+        write_section(out, lines, (KEEP_MARKER, *OLD_MARKERS), DISPLAY_HEADING)
+        print(f"\nWrote the section into {out}")
+    return 0
+
+
 def main(
     argv: Sequence[str] | None = None,
     *,
@@ -202,6 +219,8 @@ def main(
         return only_constraints(models, repeats, quick, out, env, command)
     if args.only == "sequences":
         return only_sequences(models, min(repeats, 3), out, command)
+    if args.only == "display":
+        return only_display(models, repeats, out, command)
     res = Results(env, quick, repeats, [], command=command)
 
     print("Table 1")
