@@ -121,6 +121,7 @@ class HandleSystem:
     reduce : ``(m, n, 3) -> (m, free)``: a Jacobian over the free coordinates
     spare : free coordinates to leave to the goal's own constraints (volume, centroid)
     size : object size
+    equations : :func:`handle_rows` of ``handles``, when the caller has them already
     """
 
     def __init__(
@@ -131,11 +132,12 @@ class HandleSystem:
         reduce: Callable[[np.ndarray], np.ndarray],
         spare: int,
         size: float,
+        equations: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         self.handles = tuple(handles)
         self.lattice, self.size = lattice, float(size)
         h = len(self.handles)
-        rows, b = handle_rows(lattice, self.handles)
+        rows, b = equations if equations is not None else handle_rows(lattice, self.handles)
         reduced = reduce(rows)
         free = reduced.shape[1]
         if reduced.size and np.abs(reduced).max() > 0:

@@ -202,13 +202,14 @@ def solve(
     if mirror is not None:
         x, fixed = mirror.symmetric(x, fixed)
         handles += tuple(mirror.handle(h) for h in handles)
+    equations = handle_rows(lattice, handles) if handles else None
     held, face = np.zeros(len(x), bool), ""
     if goal.anchor == "far-side":
         held, face = held_face(
             lattice,
             x,
             fixed,
-            rows=handle_rows(lattice, handles)[0] if handles else None,
+            rows=equations[0] if equations else None,
             points=np.array([h.at for h in handles]).reshape(-1, 3),
             mirror_axis=None if mirror is None else mirror.axis,
         )
@@ -240,7 +241,7 @@ def solve(
     system = None
     if handles and coords.count:
         spare = surface.constraints(start_level, goal).own
-        system = HandleSystem(lattice, handles, x, coords.reduce, spare, size)
+        system = HandleSystem(lattice, handles, x, coords.reduce, spare, size, equations)
 
     def constraints(k):
         return surface.constraints(k, goal, system)
