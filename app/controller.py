@@ -166,24 +166,19 @@ class EditorSession(QObject):
     # -- the drag ----------------------------------------------------------------------------
     def begin_drag(self, verb: str = "Move") -> bool:
         """Start a drag (or a grab, rotate or scale: ``verb``) of the selection."""
-        base = self.document.base_nodes()
-        self._stop()
-        self.document.live_nodes = base if self.document.preserve else None
-        drag = self.document.begin_drag(verb)
-        if drag is None:
-            return False
-        self.activity = "dragging"
-        self._pending = (base, None)
-        self.statusChanged.emit()
-        return True
+        return self._start_drag(lambda: self.document.begin_drag(verb))
 
     def begin_handle_drag(self, index: int | None = None, at=None) -> bool:
         """Start dragging handle ``index``'s target, or a new handle on the rest point
         ``at``; the drag's moves, finish and cancel are a node drag's."""
+        return self._start_drag(lambda: self.document.begin_handle_drag(index, at))
+
+    def _start_drag(self, begin) -> bool:
+        """Stop the solve and start the drag ``begin()`` makes (False when it makes none)."""
         base = self.document.base_nodes()
         self._stop()
         self.document.live_nodes = base if self.document.preserve else None
-        if self.document.begin_handle_drag(index, at) is None:
+        if begin() is None:
             return False
         self.activity = "dragging"
         self._pending = (base, None)
