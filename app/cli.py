@@ -50,7 +50,14 @@ from typing import TYPE_CHECKING, Any, NoReturn, TextIO  # noqa: E402
 
 from .. import __version__  # noqa: E402
 from ..core.errors import IsochorError  # noqa: E402
-from .console import PipeSafe  # noqa: E402
+from .console import (  # noqa: E402
+    EXIT_ERROR,
+    EXIT_INTERNAL,
+    EXIT_NOT_CONVERGED,
+    EXIT_OK,
+    EXIT_USAGE,
+    PipeSafe,
+)
 
 # One BLAS thread unless the user says otherwise: the lattice products are small and the
 # solver shares the cores with the window; measured under load, a 125-node basis product
@@ -63,8 +70,6 @@ if TYPE_CHECKING:
     from ..core.multilevel import SolveResult
     from ..core.problem import Problem
 
-EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED = 0, 1, 2, 3
-EXIT_INTERNAL = 70  # EX_SOFTWARE: a bug, not the user's doing
 #: set (to anything but "" or "0") for Python's warnings and the traceback of an internal error
 DEBUG_VARIABLE = "ISOCHOR_DEBUG"
 

@@ -1,10 +1,14 @@
-"""Standard output for the command line's table and summary."""
+"""The command line's output: its exit statuses and a standard output for its table and
+summary."""
 
 from __future__ import annotations
 
 import contextlib
 import os
 from typing import TextIO
+
+EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED = 0, 1, 2, 3
+EXIT_INTERNAL = 70  # EX_SOFTWARE: a bug, not the user's doing
 
 
 class PipeSafe:

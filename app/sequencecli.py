@@ -21,9 +21,7 @@ from ..core.problem import build
 from ..core.report import sequence_report
 from ..core.sequence import frame_path, solve_sequence
 from . import interrupts
-from .console import PipeSafe
-
-EXIT_OK, EXIT_NOT_CONVERGED = 0, 3
+from .console import EXIT_NOT_CONVERGED, EXIT_OK, PipeSafe
 
 
 def run_sequence(args, scenario, inputs: list, source: str) -> int:
@@ -65,6 +63,7 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
             print(line, file=console, flush=True)
 
     seq = run_to_end(solve_sequence(problem), row)
+
     surface = problem.surface
     if one_glb:
         meshes = [surface.deform(f.result.nodes) for f in seq.frames]
