@@ -164,28 +164,13 @@ def only_constraints(
     return 0
 
 
-def only_sequences(models: Path, repeats: int, out: Path | None, command: str) -> int:
-    """``--only sequences``: a timeline against its frames solved cold, the section
-    replaced in place in the report."""
-    print("Sequences: keyframed poses against cold solves (medians)")
-    rows, notes = run_sequences(models, repeats)
+def only_section(title: str, run, section_lines, heading: str, out: Path | None) -> int:
+    """``--only sequences`` / ``--only display``: ``run()`` gives the rows and notes,
+    ``section_lines(rows, notes)`` the section, which replaces its namesake in ``out``."""
+    print(title)
+    rows, notes = run()
     if out is not None:
-        lines = sequences_section(rows, notes, command, repeats)
-        write_section(out, lines, (KEEP_MARKER, *OLD_MARKERS), SEQUENCES_HEADING)
-        print(f"\nWrote the section into {out}")
-    return 0
-
-
-def only_display(models: Path, repeats: int, out: Path | None, command: str) -> int:
-    """``--only display``: issue 9's baseline, the section replaced in place."""
-    print("Display rate: the issue-9 baseline (medians)")
-    rows, notes = run_display(models, repeats)
-    for r in rows:
-        ms = r.timing.ms() if r.timing is not None else "-"
-        print(f"  {r.what}: {ms} ms; {r.target}; {r.verdict()}")
-    if out is not None:
-        lines = display_section(rows, notes, command, repeats)
-        write_section(out, lines, (KEEP_MARKER, *OLD_MARKERS), DISPLAY_HEADING)
+        write_section(out, section_lines(rows, notes), (KEEP_MARKER, *OLD_MARKERS), heading)
         print(f"\nWrote the section into {out}")
     return 0
 
@@ -218,9 +203,22 @@ def main(
     if args.only == "constraints":
         return only_constraints(models, repeats, quick, out, env, command)
     if args.only == "sequences":
-        return only_sequences(models, min(repeats, 3), out, command)
+        reps = min(repeats, 3)
+        return only_section(
+            "Sequences: keyframed poses against cold solves (medians)",
+            lambda: run_sequences(models, reps),
+            lambda rows, notes: sequences_section(rows, notes, command, reps),
+            SEQUENCES_HEADING,
+            out,
+        )
     if args.only == "display":
-        return only_display(models, repeats, out, command)
+        return only_section(
+            "Display rate: the issue-9 baseline (medians)",
+            lambda: run_display(models, repeats),
+            lambda rows, notes: display_section(rows, notes, command, repeats),
+            DISPLAY_HEADING,
+            out,
+        )
     res = Results(env, quick, repeats, [], command=command)
 
     print("Table 1")

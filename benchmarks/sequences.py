@@ -71,33 +71,33 @@ def _scenario(model: dict, nodes, frames: int) -> Scenario:
     )
 
 
-def _cold(problem, seq) -> float:
-    """Seconds to solve every frame's edit from the rest lattice."""
-    timeline, lattice = problem.scenario.timeline, problem.surface.lattice
+def _frame_edits(problem, seq, lattice):
+    """Per frame of ``seq``: exactly what the sequence held there, on ``lattice``: the
+    start (its fixed coordinates where the result has them, the rest at rest), the fixed
+    coordinates and the goal (its target ratio)."""
+    timeline = problem.scenario.timeline
     fixed_of = [p.edit.apply(lattice)[1] for p in timeline.poses]
-    t0 = time.perf_counter()
     for f in seq.frames:
         a, b, _ = timeline.segment(f.frame)
         fixed = fixed_of[a] | fixed_of[b]
         start = np.where(fixed, f.result.nodes, lattice.rest_nodes)
         ratio = f.result.volume_target / f.result.volume_original
-        goal = replace(problem.scenario.goal, target_ratio=ratio)
+        yield start, fixed, replace(problem.scenario.goal, target_ratio=ratio)
+
+
+def _cold(problem, seq) -> float:
+    """Seconds to solve every frame's edit from the rest lattice."""
+    t0 = time.perf_counter()
+    for start, fixed, goal in _frame_edits(problem, seq, problem.surface.lattice):
         run_to_end(solve(problem.surface, start, fixed, goal=goal, options=problem.options))
     return time.perf_counter() - t0
 
 
 def _fresh(problem, seq) -> float:
     """Seconds for every frame as a separate run: load, pyramid, solve from rest."""
-    timeline = problem.scenario.timeline
     t0 = time.perf_counter()
-    for f in seq.frames:
-        a, b, _ = timeline.segment(f.frame)
+    for start, fixed, goal in _frame_edits(problem, seq, problem.surface.lattice):
         fresh = build(replace(problem.scenario, timeline=None))
-        lattice = fresh.surface.lattice
-        fixed = timeline.poses[a].edit.apply(lattice)[1] | timeline.poses[b].edit.apply(lattice)[1]
-        start = np.where(fixed, f.result.nodes, lattice.rest_nodes)
-        ratio = f.result.volume_target / f.result.volume_original
-        goal = replace(problem.scenario.goal, target_ratio=ratio)
         run_to_end(solve(fresh.surface, start, fixed, goal=goal, options=fresh.options))
     return time.perf_counter() - t0
 
