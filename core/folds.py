@@ -324,3 +324,23 @@ class FoldGuard:
         g = self._g if active.size == k else self._g[:, active]
         grad += g.reshape(w.shape[0], -1).T @ w
         return value, grad
+
+    def gauss_newton(self, nodes: np.ndarray) -> np.ndarray:
+        """``(3 nodes, 3 nodes)``: the penalty's Hessian without the determinants' own
+        curvature, ``sum_p phi''(det_p) grad det_p grad det_p^T`` over the points within the
+        margin (positive semi-definite; zero when nowhere near a fold). For the solver's
+        preconditioner (:mod:`isochor.core.precondition`)."""
+        n = 3 * self.lattice.n_nodes
+        if self.n_points == 0 or self.weight == 0:
+            return np.zeros((n, n))
+        c0, c1, c2 = self._columns(nodes)
+        short = np.maximum(self.margin - np.einsum("pa,pa->p", c0, np.cross(c1, c2)), 0.0)
+        active = np.flatnonzero(short > 0)
+        if active.size == 0:
+            return np.zeros((n, n))
+        a0, a1, a2 = c0[active], c1[active], c2[active]
+        cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)])  # (3, a, 3)
+        # grad det_p over (node, axis): sum_b g[b, p, node] cof[b, p, axis]
+        rows = np.einsum("bpn,bpa->pna", self._g[:, active], cof).reshape(active.size, n)
+        curvature = 6.0 * self.weight / self.n_points * short[active]  # phi''(det)
+        return rows.T @ (curvature[:, None] * rows)

@@ -24,12 +24,15 @@ import warnings
 from collections import deque
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.optimize import line_search
 
 from .defaults import TOL_NODES, TOL_VOLUME
 from .generators import relay
+from .precondition import Preconditioner, preconditioner
 
 
 @dataclass(frozen=True)
@@ -40,6 +43,10 @@ class SolverOptions:
     tol_volume: float = TOL_VOLUME  #: |dV| / V0 that counts as preserved
     tol_nodes: float = TOL_NODES  #: epsilon: largest node change between levels (Sec 4.3)
     sigma0: float = 10.0  #: first penalty factor
+    #: first penalty factor of a warm start (a re-solve, a drag's frame), preconditioned:
+    #: its multipliers come from the start point, so a firm penalty only speeds it up
+    #: (a live frame on the torus example: 23 steps at sigma 10, 11 at 1000)
+    sigma_warm: float = 1000.0
     sigma_max: float = 1e8  #: cap on the penalty factor (paper: "an upper bound for sigma")
     #: inner minimisation stops when max |dLa/dy| is below this (1e-6 cost 7-40% more time
     #: for no gain in the results' accuracy; 1e-4 lets the cow's node change reach 0.1%)
@@ -52,7 +59,10 @@ class SolverOptions:
     max_steps: int = 5000
     memory: int = 12  #: L-BFGS correction pairs
     volume_margin: float = 0.5  #: a level is solved at ``volume_margin * tol_volume``
-    symmetry_break: float = 1e-4  #: size of the start nudge of free nodes, / object size
+    #: size of the start nudge of free nodes, / object size. The preconditioned solver
+    #: converges so fast that a 1e-4 nudge leaves it on the torus stretch's symmetric
+    #: saddle (spring energy 0.3137 against the minimum's 0.3111); 1e-2 does not.
+    symmetry_break: float = 1e-2
     #: A fresh solve starts on the coarsest level with at least this many triangles. Below
     #: a few hundred triangles a step costs as much as on a mid-sized level (fixed call
     #: overhead) and the level's optimum is far from the real one (a 16-triangle torus has
@@ -61,6 +71,12 @@ class SolverOptions:
     #: starting near 1000 (docs/BENCHMARKS.md, start-level sweep). 0 gives the paper's
     #: schedule.
     start_triangles: int = 1000
+    #: start each inner minimisation from the springs' Hessian and the penalty's
+    #: Gauss-Newton term (:mod:`isochor.core.precondition`) instead of a scaled identity
+    precondition: bool = True
+    #: a live drag's frames are solved up to the finest level with at most this many
+    #: triangles (:func:`isochor.core.multilevel.solve` with ``live``)
+    live_triangles: int = 6000
 
 
 @dataclass(frozen=True)
@@ -80,11 +96,20 @@ Objective = Callable[[np.ndarray], tuple[float, np.ndarray, tuple[float, float]]
 
 
 def lbfgs(
-    fun: Objective, x0: np.ndarray, *, gtol: float, max_iter: int, memory: int = 12
+    fun: Objective,
+    x0: np.ndarray,
+    *,
+    gtol: float,
+    max_iter: int,
+    memory: int = 12,
+    h0: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> Generator[tuple[np.ndarray, tuple[float, float]], None, tuple[np.ndarray, int, bool]]:
     """Minimise ``fun`` from ``x0``; yields ``(x, aux)`` after every accepted step.
 
-    ``fun(x)`` returns ``(f, grad, aux)``. Returns ``(x, steps, converged)``.
+    ``fun(x)`` returns ``(f, grad, aux)``. Returns ``(x, steps, converged)``. ``h0``, when
+    given, applies an approximate inverse Hessian (the preconditioner): it replaces the
+    scaled identity of the two-loop recursion, and the first step is ``-h0(g)`` tried
+    whole, like every quasi-Newton step.
     """
     cache: dict[bytes, tuple[float, np.ndarray, tuple[float, float]]] = {}
 
@@ -106,16 +131,17 @@ def lbfgs(
             raise FloatingPointError("the objective gradient is not finite")
         if np.max(np.abs(g)) <= gtol:
             return x, it, True
-        d = _two_loop(g, s_hist, y_hist)
+        d = _two_loop(g, s_hist, y_hist, h0)
         if g @ d >= 0:  # not a descent direction: restart from steepest descent
             s_hist.clear()
             y_hist.clear()
             d = -g
-        if not s_hist:  # first step: a move of at most 1% of the object size
-            d = d * min(1.0, 0.01 / max(np.max(np.abs(d)), 1e-300))
+            h0 = None
+        if not s_hist:  # first step: a move of at most 1% (10% preconditioned) of the size
+            d = d * min(1.0, (0.01 if h0 is None else 0.1) / max(np.max(np.abs(d)), 1e-300))
         slope = g @ d
         alpha = None
-        if s_hist:  # the quasi-Newton step usually fits: take it when it decreases enough
+        if s_hist or h0 is not None:  # the quasi-Newton step usually fits: take it if it can
             f_try, g_try, _ = evaluate(x + d)
             if f_try <= f + 1e-4 * slope and abs(g_try @ d) <= 0.9 * abs(slope):
                 alpha = 1.0
@@ -151,8 +177,8 @@ def lbfgs(
     return x, max_iter, False
 
 
-def _two_loop(g: np.ndarray, s_hist: deque, y_hist: deque) -> np.ndarray:
-    """L-BFGS search direction -H g from the stored correction pairs."""
+def _two_loop(g: np.ndarray, s_hist: deque, y_hist: deque, h0=None) -> np.ndarray:
+    """L-BFGS search direction -H g from the stored correction pairs (and ``h0``)."""
     q = g.copy()
     rhos = [1.0 / (y @ s) for s, y in zip(s_hist, y_hist)]
     alphas = []
@@ -160,7 +186,9 @@ def _two_loop(g: np.ndarray, s_hist: deque, y_hist: deque) -> np.ndarray:
         a = rho * (s @ q)
         q -= a * y
         alphas.append(a)
-    if s_hist:
+    if h0 is not None:
+        q = h0(q)
+    elif s_hist:
         s, y = s_hist[-1], y_hist[-1]
         q *= (s @ y) / (y @ y)
     for s, y, rho, a in zip(s_hist, y_hist, rhos, reversed(alphas)):
@@ -191,6 +219,24 @@ class Coordinates:
         self.dst, self.src, self.sign, self.offset = ties or (empty, empty, 0.0, 0.0)
         self._columns = np.flatnonzero(self.free.ravel())
         self.count = len(self._columns)
+
+    @cached_property
+    def matrix(self) -> sp.csr_matrix:
+        """(count, 3n) sparse: :meth:`reduce` as a matrix, ``reduce(g) = matrix @ g.ravel()``."""
+        n = self.free.size
+        rows = np.full(n, -1)
+        rows[self._columns] = np.arange(self.count)
+        r, c, v = [np.arange(self.count)], [self._columns], [np.ones(self.count)]
+        if len(self.dst):
+            src, dst = np.asarray(self.src), np.asarray(self.dst)
+            sign = np.broadcast_to(np.asarray(self.sign, dtype=np.float64), src.shape)
+            keep = rows[src] >= 0
+            r.append(rows[src][keep])
+            c.append(dst[keep])
+            v.append(sign[keep])
+        return sp.csr_matrix(
+            (np.concatenate(v), (np.concatenate(r), np.concatenate(c))), shape=(self.count, n)
+        )
 
     @property
     def moving(self) -> np.ndarray:
@@ -239,11 +285,23 @@ class LevelProblem:
     center, size : the normalisation of lengths
     """
 
-    def __init__(self, nodes, free, energy_grad, constraint_grad, center, size):
+    def __init__(self, nodes, free, energy_grad, constraint_grad, center, size, hessian=None):
         self.template = np.array(nodes, dtype=np.float64)
         self.coords = free if isinstance(free, Coordinates) else Coordinates(free, center, size)
         self.energy_grad, self.constraint_grad = energy_grad, constraint_grad
+        self.hessian = hessian
         self.size = self.coords.size
+
+    def preconditioner(self, y: np.ndarray, sigma: float) -> Preconditioner | None:
+        """The approximate inverse Hessian of the augmented Lagrangian at ``y``
+        (:mod:`isochor.core.precondition`), or None without an energy Hessian."""
+        if self.hessian is None:
+            return None
+        x = self.to_nodes(y)
+        _, dc = self.constraint_grad(x)
+        return preconditioner(
+            self.hessian(x), self.coords.matrix, self.coords.reduce(dc) * self.size, sigma
+        )
 
     def to_y(self, nodes: np.ndarray) -> np.ndarray:
         return self.coords.to_y(nodes)
@@ -314,6 +372,7 @@ def augmented_lagrangian(
             gtol=options.gtol,
             max_iter=options.max_inner,
             memory=options.memory,
+            h0=problem.preconditioner(y, sigma) if options.precondition else None,
         )
 
         def iterate(record, outer=outer, sigma=sigma, lam=lam):

@@ -86,3 +86,31 @@ class SpringNetwork:
         force = (self.stiffness * stretch / safe)[:, None] * d
         grad = self._incidence_t @ force
         return energy, grad
+
+    def hessian(self, nodes: np.ndarray) -> sp.csr_matrix:
+        """A positive semi-definite approximation of the energy's Hessian at ``nodes``:
+        ``(3 nodes, 3 nodes)`` sparse, rows and columns ordered as ``nodes.ravel()``.
+
+        Per spring the exact block is ``k (u u^T + (1 - L/l) (I - u u^T))`` on the
+        difference of its ends (``u`` the unit direction, ``l`` the length, ``L`` the rest
+        length); the second term is dropped where it is negative (a compressed spring), so
+        the matrix stays a valid preconditioner. Exact for every stretched spring."""
+        d = nodes[self.edges[:, 1]] - nodes[self.edges[:, 0]]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        safe = np.where(length > 0, length, 1.0)
+        u = d / safe[:, None]
+        bend = np.clip(1.0 - self.rest_lengths / safe, 0.0, None)
+        eye = np.eye(3)
+        outer = u[:, :, None] * u[:, None, :]
+        block = self.stiffness * (outer + bend[:, None, None] * (eye - outer))  # (s, 3, 3)
+        a, b = 3 * self.edges[:, 0], 3 * self.edges[:, 1]
+        r3, c3 = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+        rows, cols, vals = [], [], []
+        for p, q, sign in ((a, a, 1.0), (b, b, 1.0), (a, b, -1.0), (b, a, -1.0)):
+            rows.append((p[:, None, None] + r3).ravel())
+            cols.append((q[:, None, None] + c3).ravel())
+            vals.append((sign * block).ravel())
+        n = 3 * self.n_nodes
+        return sp.csr_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
+        )
