@@ -24,124 +24,21 @@ from __future__ import annotations
 
 import time
 from collections.abc import Generator, Sequence
-from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 
 from .anchor import held_face
-from .constraints import Bodies, Constraints, Goal, Level
+from .constraints import Goal
 from .errors import IsochorError
-from .folds import FoldCheck, FoldGuard, interior_points
 from .generators import relay
 from .handles import Handle, HandleSystem, handle_rows
-from .lattice import Lattice
-from .mesh import TriMesh
-from .outcome import outcome
+from .outcome import outcome, preview
 from .records import LevelStats, Progress, SolveResult, frozen_copy
 from .solver import Coordinates, LevelProblem, SolverOptions, augmented_lagrangian, worst
-from .springs import SpringNetwork
+from .surface import FOLD_MARGIN, EmbeddedSurface, live_level
 from .symmetry import Mirror
-from .volume import signed_volume
 
-#: the fold guard keeps det J above this fraction of min(1, target ratio) ...
-FOLD_MARGIN = 0.05
-#: ... with this weight: a sample point at det J = 0 costs FOLD_WEIGHT / samples (the spring
-#: energy of a bent model is 0.01 to 1)
-FOLD_WEIGHT = 100
-
-
-@dataclass(eq=False)
-class EmbeddedSurface:
-    """A surface pyramid embedded in a lattice, with per-level caches.
-
-    Build one per document and reuse it for every solve: the bases of the levels are
-    computed the first time a level is used and kept.
-
-    Parameters
-    ----------
-    lattice : the FFD lattice; its rest nodes define X_org
-    levels : coarse to fine versions of one closed surface; the last is full resolution
-    """
-
-    lattice: Lattice
-    levels: Sequence[TriMesh]
-    _cache: dict = field(default_factory=dict, repr=False)
-
-    def __post_init__(self) -> None:
-        if not self.levels:
-            raise IsochorError("A surface needs at least one mesh level.")
-        self.levels = tuple(self.levels)
-
-    @cached_property
-    def springs(self) -> SpringNetwork:
-        return SpringNetwork.for_lattice(self.lattice.shape, self.lattice.rest_nodes)
-
-    @property
-    def full(self) -> TriMesh:
-        return self.levels[-1]
-
-    @cached_property
-    def size(self) -> float:
-        """Object size: the largest bounding-box extent of the full mesh."""
-        return self.full.size
-
-    @cached_property
-    def center(self) -> np.ndarray:
-        """Centre of the full mesh's bounding box."""
-        return self.full.center
-
-    def level(self, k: int) -> Level:
-        k = k % len(self.levels)
-        if k not in self._cache:
-            self._cache[k] = Level(self.lattice, self.levels[k], self.center)
-        return self._cache[k]
-
-    @cached_property
-    def bodies(self) -> Bodies:
-        """The full mesh's solid bodies (shells with their cavities)."""
-        return Bodies.of(self.full)
-
-    def constraints(self, k: int, goal: Goal, extra: HandleSystem | None = None) -> Constraints:
-        """The goal's constraints on level ``k`` (and the handles', when given)."""
-        bodies = self.bodies if goal.preserve == "per-body" else None
-        return Constraints(self.level(k), goal, bodies, self.rest_volume, self.size, extra)
-
-    @cached_property
-    def _probe(self) -> TriMesh:
-        """The coarsest level with at least 1000 triangles: where samples are taken."""
-        return next((m for m in self.levels if m.n_faces >= 1000), self.full)
-
-    @cached_property
-    def interior(self) -> np.ndarray:
-        """About 2000 grid points inside the model (found on the probe level)."""
-        return interior_points(self._probe)
-
-    @cached_property
-    def fold_check(self) -> FoldCheck:
-        """det J over the full mesh's vertices and points inside the model."""
-        return FoldCheck(self.lattice, self.full.vertices, self.interior)
-
-    def fold_guard(self, margin: float) -> FoldGuard:
-        """The fold penalty at the probe level's vertices and interior points."""
-        key = ("guard", margin)
-        if key not in self._cache:
-            points = np.concatenate([self._probe.vertices, self.interior])
-            self._cache[key] = FoldGuard(self.lattice, points, margin, FOLD_WEIGHT / margin**3)
-        return self._cache[key]
-
-    @cached_property
-    def rest_volume(self) -> float:
-        """Volume of the full-resolution mesh as given (the FFD of the rest lattice is the
-        identity), computed without building the full level's basis."""
-        return signed_volume(self.full.vertices, self.full.faces)
-
-    def volume(self, nodes: np.ndarray, level: int = -1) -> float:
-        return self.level(level).volume(np.asarray(nodes, dtype=np.float64))
-
-    def deform(self, nodes: np.ndarray, level: int = -1) -> np.ndarray:
-        """(m, 3) vertices of a level deformed by ``nodes``."""
-        return self.level(level).basis.apply(np.asarray(nodes, dtype=np.float64))
+__all__ = ["EmbeddedSurface", "Progress", "SolveResult", "live_level", "solve"]
 
 
 def solve(
@@ -155,6 +52,7 @@ def solve(
     options: SolverOptions | None = None,
     start_level: int | None = None,
     near: bool = False,
+    live: bool = False,
 ) -> Generator[Progress, None, SolveResult]:
     """Move the free nodes to the least spring energy that meets the goal.
 
@@ -173,6 +71,10 @@ def solve(
     near : ``nodes`` solve a nearby problem (the frame before, in a sequence): start on the
         coarsest level whose constraints agree with the full mesh's there, with the
         least-squares multipliers, as a re-solve does, even though the goal is not met yet
+    live : a frame of a live drag (implies ``near``): solve only up to the finest level with
+        at most ``options.live_triangles`` triangles and never touch the full mesh; the
+        result is measured on that level and marked ``preview`` (the solve when the drag
+        ends gives the measured one)
 
     Yields
     ------
@@ -182,7 +84,7 @@ def solve(
     Returns
     -------
     SolveResult, with the volumes, the folds and the centroid measured on the
-    full-resolution mesh.
+    full-resolution mesh (on the preview level, with ``live``).
     """
     opts = options or SolverOptions()
     goal = goal or Goal(target_ratio=target_ratio)
@@ -227,17 +129,11 @@ def solve(
             n_levels - 1,
         )
     start_level = start_level % n_levels
+    top = n_levels - 1  # the level the solve ends on at the latest
+    if live:
+        top = live_level(surface, opts.live_triangles)
+        start_level, near = min(start_level, top), True
     springs = surface.springs
-    if goal.fold_guard:
-        guard = surface.fold_guard(FOLD_MARGIN * min(1.0, goal.target_ratio))
-
-        def energy_grad(x):
-            e, de = springs.energy_and_gradient(x)
-            p, dp = guard.value_and_gradient(x)
-            return e + p * size**2, de + dp * size**2
-    else:
-        energy_grad = springs.energy_and_gradient
-
     system = None
     if handles and coords.count:
         spare = surface.constraints(start_level, goal).own
@@ -247,7 +143,7 @@ def solve(
         return surface.constraints(k, goal, system)
 
     def result(x, stats, terminal, lam, sigma, converged, message=""):
-        return outcome(
+        return (preview if live else outcome)(
             surface, goal, opts, x, stats, terminal, lam, sigma, converged, message, held, face,
             int(coords.moving.any(axis=1).sum()), t0, system, mirror,
         )  # fmt: skip
@@ -273,15 +169,31 @@ def solve(
         worst(c),
         opts.sigma0,
         0.0,
-        energy_grad(x)[0] / size**2,
+        springs.energy(x) / size**2,
         time.perf_counter() - t0,
     )
+    # the fold guard's samples (points inside the model: a second on a big model the
+    # first time) are found after the first record
+    if goal.fold_guard:
+        guard = surface.fold_guard(FOLD_MARGIN * min(1.0, goal.target_ratio))
+
+        def energy_grad(x):
+            e, de = springs.energy_and_gradient(x)
+            p, dp = guard.value_and_gradient(x)
+            return e + p * size**2, de + dp * size**2
+
+        def hessian(x):
+            return springs.hessian(x) + guard.gauss_newton(x) * size**2
+    else:
+        energy_grad, hessian = springs.energy_and_gradient, springs.hessian
 
     lam, sigma = np.zeros(first.count), opts.sigma0
-    warm = _warm_start(constraints, len(surface.levels), x, coords, energy_grad, opts, near)
+    warm = _warm_start(constraints, top + 1, x, coords, energy_grad, opts, near)
     x_prev = x
     if warm is not None:  # already at the volume: skip the coarse levels whose optimum differs
         start_level, lam = max(start_level, warm[0]), warm[1]
+        if opts.precondition:  # the multipliers are right already: hold the volume firmly
+            sigma = max(sigma, opts.sigma_warm)
     elif opts.symmetry_break > 0:
         # An exactly symmetric start stays on the symmetric manifold under any gradient
         # method and can end on a saddle (the torus stretch does). A tiny fixed-seed
@@ -292,12 +204,14 @@ def solve(
         x[coords.free] += opts.symmetry_break * size * nudge
         x = coords.tied(x)
     stats: list[LevelStats] = []
-    terminal = n_levels - 1
+    terminal = top
     converged_level = False
-    for k in range(start_level, n_levels):
+    for k in range(start_level, top + 1):
         t_level = time.perf_counter()
         cons = constraints(k)
-        problem = LevelProblem(x, coords, energy_grad, cons.values_and_jacobian, center, size)
+        problem = LevelProblem(
+            x, coords, energy_grad, cons.values_and_jacobian, center, size, hessian
+        )
         run = augmented_lagrangian(problem, problem.to_y(x), lam, sigma, opts)
 
         def progress(it, k=k, cons=cons, problem=problem):
@@ -364,11 +278,11 @@ def solve(
                 False,
                 f"the volume constraint did not converge on level {k}",
             )
-        if k == n_levels - 1:
+        if k == top:
             converged_level = True
             break
         if change < opts.tol_nodes and estimate is not None and estimate <= opts.tol_volume:
-            c_full = constraints(-1).values(x)
+            c_full = constraints(top).values(x)
             if np.max(np.abs(c_full)) <= opts.tol_volume:
                 terminal, converged_level = k, True
                 break
@@ -386,11 +300,12 @@ def _warm_start(
     ``x`` does not meet the goal (then the solve starts at the coarsest level with lambda 0).
     A converged result restarted this way stops after one level and no steps, instead of
     re-deriving a different equilibrium from the coarse levels (the paper's Plate 6).
-    ``constraints(k)`` are level k's constraints, of ``n`` levels. With ``near`` the goal
-    need not be met at ``x``: the level is the coarsest whose constraints differ from the
-    full mesh's by at most the tolerance.
+    ``constraints(k)`` are level k's constraints, of ``n`` levels (the last is the reference,
+    the full mesh but in a live preview). With ``near`` the goal need not be met at ``x``:
+    the level is the coarsest whose constraints differ from the reference's by at most the
+    tolerance.
     """
-    c_full = constraints(-1).values(x)
+    c_full = constraints(n - 1).values(x)
     if np.max(np.abs(c_full)) > opts.tol_volume and not near:
         return None
 

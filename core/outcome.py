@@ -115,3 +115,41 @@ def outcome(
         handles=handles,
         asymmetry=None if mirror is None else mirror.asymmetry(x),
     )
+
+
+def preview(
+    surface, goal, opts, x, stats, terminal, lam, sigma, converged, message, held, face, n_free,
+    t0, system=None, mirror=None,
+) -> SolveResult:  # fmt: skip
+    """A live drag's frame, measured on the level it was solved on (``terminal``) and never
+    on the full mesh: the volume is that level's, scaled by the full mesh's rest volume
+    over the level's; folds, bodies, the centroid and the handles are not measured. It is
+    for showing, not for keeping: the solve when the drag ends measures the real result."""
+    level = surface.level(terminal)
+    v0 = surface.rest_volume
+    v_final = level.volume(x) * v0 / level.rest_volume
+    target = goal.target_ratio * v0
+    c = surface.constraints(terminal, goal, system).values(x)
+    if not (np.all(np.isfinite(x)) and np.isfinite(v_final)):
+        raise IsochorError("The solve broke down: its numbers overflowed.")
+    return SolveResult(
+        frozen_copy(x),
+        tuple(stats),
+        terminal,
+        v0,
+        target,
+        v_final,
+        (v_final - target) / abs(v0),
+        surface.springs.energy(x) / surface.size**2,
+        n_free,
+        time.perf_counter() - t0,
+        converged and np.max(np.abs(c)) <= opts.tol_volume,
+        "; ".join(filter(None, [message, f"preview on level {terminal}"])),
+        float(np.atleast_1d(lam)[0]),
+        sigma,
+        target_error=(v_final - target) / abs(target),
+        constraint_error=worst(c),
+        held=tuple(int(r) for r in np.flatnonzero(held)),
+        held_face=face,
+        preview=True,
+    )

@@ -93,6 +93,8 @@ class SolveResult:
     handles: tuple = ()
     #: under symmetry: the largest node's distance from its partner's mirror image, / size
     asymmetry: float | None = None
+    #: a live drag's frame: measured on ``terminal_level``, not on the full mesh; no folds
+    preview: bool = False
 
     @property
     def handles_met(self) -> bool:
