@@ -203,22 +203,9 @@ def main(
     if args.only == "constraints":
         return only_constraints(models, repeats, quick, out, env, command)
     if args.only == "sequences":
-        reps = min(repeats, 3)
-        return only_section(
-            "Sequences: keyframed poses against cold solves (medians)",
-            lambda: run_sequences(models, reps),
-            lambda rows, notes: sequences_section(rows, notes, command, reps),
-            SEQUENCES_HEADING,
-            out,
-        )
+        return run_sequences_section(models, repeats, command, out)
     if args.only == "display":
-        return only_section(
-            "Display rate: the issue-9 baseline (medians)",
-            lambda: run_display(models, repeats),
-            lambda rows, notes: display_section(rows, notes, command, repeats),
-            DISPLAY_HEADING,
-            out,
-        )
+        return run_display_section(models, repeats, command, out)
     res = Results(env, quick, repeats, [], command=command)
 
     print("Table 1")
@@ -301,4 +288,28 @@ def main(
     if out is not None:
         write_report(res, out)
         print(f"\nWrote {out}")
+    if not quick:  # the sections --only measures, into the same report
+        run_sequences_section(models, repeats, command, out)
+        run_display_section(models, repeats, command, out)
     return 0
+
+
+def run_sequences_section(models: Path, repeats: int, command: str, out: Path | None) -> int:
+    reps = min(repeats, 3)
+    return only_section(
+        "Sequences: keyframed poses against cold solves (medians)",
+        lambda: run_sequences(models, reps),
+        lambda rows, notes: sequences_section(rows, notes, command, reps),
+        SEQUENCES_HEADING,
+        out,
+    )
+
+
+def run_display_section(models: Path, repeats: int, command: str, out: Path | None) -> int:
+    return only_section(
+        "Display rate (medians)",
+        lambda: run_display(models, repeats),
+        lambda rows, notes: display_section(rows, notes, command, repeats),
+        DISPLAY_HEADING,
+        out,
+    )
