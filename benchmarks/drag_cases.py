@@ -100,7 +100,7 @@ def drag(problem, repeats: int, frames: int = 10, options=None) -> Drag:
                 frames_ok &= bool(result.converged)
             level = result.terminal_level
         t0 = time.perf_counter()
-        result = run_to_end(solve(surface, np.array(result.nodes), fixed, options=opts))
+        result = run_to_end(solve(surface, np.array(result.nodes), fixed, options=opts, near=True))
         if rep:
             release_t.append(time.perf_counter() - t0)
             release_ok &= bool(result.converged)

@@ -32,7 +32,7 @@ from scipy.optimize import line_search
 
 from .defaults import TOL_NODES, TOL_VOLUME
 from .generators import relay
-from .precondition import Preconditioner, preconditioner
+from .precondition import Preconditioner
 
 
 @dataclass(frozen=True)
@@ -77,6 +77,12 @@ class SolverOptions:
     #: a live drag's frames are solved up to the finest level with at most this many
     #: triangles (:func:`isochor.core.multilevel.solve` with ``live``)
     live_triangles: int = 6000
+
+
+#: the preconditioner's curvature is taken again once a level's variables moved this far
+#: (/ object size) from where it was taken; a drag's frame and a level that starts near its
+#: optimum keep one
+CURVATURE_MOVE = 1e-2
 
 
 @dataclass(frozen=True)
@@ -238,6 +244,13 @@ class Coordinates:
             (np.concatenate(v), (np.concatenate(r), np.concatenate(c))), shape=(self.count, n)
         )
 
+    def restrict(self, h: np.ndarray) -> np.ndarray:
+        """A (3n, 3n) matrix over the node coordinates (a Hessian) as one over the
+        variables, ``matrix @ h @ matrix.T``: a plain selection without ties."""
+        if len(self.dst):
+            return np.asarray(self.matrix @ (self.matrix @ h).T)
+        return h[np.ix_(self._columns, self._columns)]
+
     @property
     def moving(self) -> np.ndarray:
         """(n, 3) bool: every coordinate the solve changes (variables and tied ones)."""
@@ -289,19 +302,23 @@ class LevelProblem:
         self.template = np.array(nodes, dtype=np.float64)
         self.coords = free if isinstance(free, Coordinates) else Coordinates(free, center, size)
         self.energy_grad, self.constraint_grad = energy_grad, constraint_grad
-        self.hessian = hessian
+        self.hessian, self._curvature, self._curvature_y = hessian, None, None
         self.size = self.coords.size
 
-    def preconditioner(self, y: np.ndarray, sigma: float) -> Preconditioner | None:
-        """The approximate inverse Hessian of the augmented Lagrangian at ``y``
-        (:mod:`isochor.core.precondition`), or None without an energy Hessian."""
+    def preconditioner(self, y: np.ndarray, sigma: float):
+        """``v -> M^-1 v``, the approximate inverse Hessian of the augmented Lagrangian
+        (:mod:`isochor.core.precondition`) with the curvature taken at the first ``y``
+        asked for, taken again where the variables moved by more than
+        :data:`CURVATURE_MOVE` since, or None without an energy Hessian."""
         if self.hessian is None:
             return None
-        x = self.to_nodes(y)
-        _, dc = self.constraint_grad(x)
-        return preconditioner(
-            self.hessian(x), self.coords.matrix, self.coords.reduce(dc) * self.size, sigma
-        )
+        if self._curvature is None or np.max(np.abs(y - self._curvature_y)) > CURVATURE_MOVE:
+            x = self.to_nodes(y)
+            _, dc = self.constraint_grad(x)
+            jac = self.coords.reduce(dc) * self.size
+            self._curvature = Preconditioner(self.coords.restrict(self.hessian(x)), jac)
+            self._curvature_y = np.array(y)
+        return self._curvature.at(sigma)
 
     def to_y(self, nodes: np.ndarray) -> np.ndarray:
         return self.coords.to_y(nodes)

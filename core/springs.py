@@ -10,6 +10,8 @@ energy is zero for the rest lattice and for any rigid motion of it.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -87,9 +89,9 @@ class SpringNetwork:
         grad = self._incidence_t @ force
         return energy, grad
 
-    def hessian(self, nodes: np.ndarray) -> sp.csr_matrix:
+    def hessian(self, nodes: np.ndarray) -> np.ndarray:
         """A positive semi-definite approximation of the energy's Hessian at ``nodes``:
-        ``(3 nodes, 3 nodes)`` sparse, rows and columns ordered as ``nodes.ravel()``.
+        ``(3 nodes, 3 nodes)`` dense, rows and columns ordered as ``nodes.ravel()``.
 
         Per spring the exact block is ``k (u u^T + (1 - L/l) (I - u u^T))`` on the
         difference of its ends (``u`` the unit direction, ``l`` the length, ``L`` the rest
@@ -100,17 +102,26 @@ class SpringNetwork:
         safe = np.where(length > 0, length, 1.0)
         u = d / safe[:, None]
         bend = np.clip(1.0 - self.rest_lengths / safe, 0.0, None)
-        eye = np.eye(3)
         outer = u[:, :, None] * u[:, None, :]
-        block = self.stiffness * (outer + bend[:, None, None] * (eye - outer))  # (s, 3, 3)
+        block = self.stiffness * (outer + bend[:, None, None] * (np.eye(3) - outer))  # (s,3,3)
+        n = 3 * self.n_nodes
+        weights = np.repeat(np.concatenate([block, -block]).ravel(), 2)
+        flat = np.bincount(self._hessian_cells, weights, n * n)
+        return flat.reshape(n, n)
+
+    @cached_property
+    def _hessian_cells(self) -> np.ndarray:
+        """Flat (row, column) cells of the dense Hessian that each spring's block adds to:
+        the block at (a, a) and (b, b), minus it at (a, b) and (b, a); as
+        ``[aa, bb of each block entry | ab, ba of each]``: each entry of ``block`` and then
+        of ``-block`` twice in a row."""
+        n = 3 * self.n_nodes
         a, b = 3 * self.edges[:, 0], 3 * self.edges[:, 1]
         r3, c3 = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
-        rows, cols, vals = [], [], []
-        for p, q, sign in ((a, a, 1.0), (b, b, 1.0), (a, b, -1.0), (b, a, -1.0)):
-            rows.append((p[:, None, None] + r3).ravel())
-            cols.append((q[:, None, None] + c3).ravel())
-            vals.append((sign * block).ravel())
-        n = 3 * self.n_nodes
-        return sp.csr_matrix(
-            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
-        )
+
+        def cells(p, q):
+            return ((p[:, None, None] + r3) * n + (q[:, None, None] + c3)).ravel()
+
+        same = np.stack([cells(a, a), cells(b, b)], axis=1)  # (9 s, 2)
+        cross = np.stack([cells(a, b), cells(b, a)], axis=1)
+        return np.concatenate([same, cross]).ravel()
