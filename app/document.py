@@ -31,7 +31,13 @@ from ..core.export import export_file
 from ..core.formats import READ_FORMATS, SCENARIO_SUFFIXES, is_model, is_scenario, listing
 from ..core.lattice import MAX_NODES, MIN_NODES
 from ..core.mesh import TriMesh
-from ..core.problem import Problem, build, default_lattice_shape, scenario_model
+from ..core.problem import (
+    ModelLoader,
+    Problem,
+    build,
+    default_lattice_shape,
+    scenario_model,
+)
 from ..core.scenario import Scenario
 from .drag import DragSession
 from .goalrules import Edit, GoalRules
@@ -93,17 +99,32 @@ class Document(GoalRules, HandleRules, SelectionRules, TimelineRules):
         return cls(build(example_scenario(name)), title=f"example: {name}")
 
     @classmethod
-    def open(cls, path: str | Path, *, template: bool = False) -> Document:
+    def open(
+        cls,
+        path: str | Path,
+        *,
+        template: bool = False,
+        stage: Listener | None = None,
+        loader: ModelLoader | None = None,
+    ) -> Document:
         """A model (OBJ, PLY, STL, OFF) in a default lattice, or a scenario (.json).
 
         ``template``: open a scenario as a new, unsaved document (the shipped examples), so
-        that Save asks where to write. Raises :class:`IsochorError` with a message to show.
+        that Save asks where to write. ``stage`` is told the name of each stage as it starts
+        and ``loader`` reads the model file (the loading thread's, :mod:`isochor.app.loading`).
+        Raises :class:`IsochorError` with a message to show.
         """
         path = Path(path).expanduser()
+        stage = stage or (lambda _text: None)
+        stage(f"Reading {path.name}…")
         if is_scenario(path):
             scenario = Scenario.read(path)
+            if "path" in scenario.model:
+                stage(f"Reading {scenario.model_path().name}…")
+            model = scenario_model(scenario, loader)
+            stage("Fitting the lattice…")
             where = None if template else Path(os.path.abspath(path))
-            return cls(build(scenario), path=where, title=path.name)
+            return cls(build(scenario, model=model), path=where, title=path.name)
         if not is_model(path):
             raise IsochorError(
                 f"{path.name}: unknown file type {path.suffix or '(none)'}; open a model "
@@ -112,7 +133,8 @@ class Document(GoalRules, HandleRules, SelectionRules, TimelineRules):
         if not path.is_file():
             raise IsochorError(f"{path}: no such file")
         scenario = Scenario.from_dict({"model": {"path": os.path.abspath(path)}})
-        model = scenario_model(scenario)
+        model = scenario_model(scenario, loader)
+        stage("Fitting the lattice…")
         scenario = scenario.with_(lattice_nodes=default_lattice_shape(model.levels[-1]))
         return cls(build(scenario, model=model), title=path.name)
 

@@ -1,6 +1,8 @@
 """The window's file commands: open, open an example, save, save as, export, and the
 unsaved-changes prompt. A file that cannot be read or written is shown in a dialog and the
-current document is kept.
+current document is kept. Every way of opening (File > Open, a file dropped on the view,
+the examples, the command line's file) comes through :meth:`FileCommands.open_path`; a big
+file is read on a thread with its progress in the status bar (:mod:`isochor.app.loading`).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from PySide6.QtWidgets import QApplication, QFileDialog, QMessageBox
 from ..core.errors import IsochorError
 from ..core.formats import READ_FORMATS, SCENARIO_SUFFIXES, WRITE_FORMATS
 from .document import Document
+from .loading import Loader, failure_message, in_background
 
 
 def _patterns(suffixes) -> str:
@@ -42,6 +45,7 @@ class FileCommands:
 
     def __init__(self, window) -> None:
         self.win = window
+        self._loader: Loader | None = None
 
     @property
     def doc(self) -> Document:
@@ -73,27 +77,65 @@ class FileCommands:
         if path:
             self.open_path(path)
 
-    def open_path(self, path: str | Path, *, template: bool = False) -> bool:
-        """Open a model or scenario; on error show it and keep the current document."""
+    def open_path(
+        self, path: str | Path, *, template: bool = False, background: bool | None = None
+    ) -> bool:
+        """Open a model or scenario; on error show it and keep the current document.
+
+        A big file (:func:`~isochor.app.loading.in_background`; ``background`` says so
+        instead) is read on a thread with its progress in the status bar, and the current
+        document stays until the new one is ready: then this returns True when the loading
+        started. A small one opens at once: True when it opened."""
         if not self.confirm_discard():
             return False
+        if self._loader is not None:
+            self._loader.cancel(quiet=True)  # the newest open wins
+        if background if background is not None else in_background(path):
+            self.loader.start(path, template=template, mark=self._mark())
+            return True
         win = self.win
         QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
         win.statusBar().showMessage(f"Opening {Path(path).name}…")
         QApplication.processEvents()
         try:
             doc = Document.open(path, template=template)
-        except IsochorError as exc:
-            return self._open_failed(str(exc))
         except Exception as exc:
-            return self._open_failed(f"{Path(path).name}: {type(exc).__name__}: {exc}")
+            QApplication.restoreOverrideCursor()
+            return self._open_failed(failure_message(path, exc))
         QApplication.restoreOverrideCursor()
         win.statusBar().clearMessage()
         win.session.load(doc)
         return True
 
+    @property
+    def loader(self) -> Loader:
+        """The background opening (its bar joins the status bar the first time)."""
+        if self._loader is None:
+            self._loader = Loader(self.win, self._loaded, self._open_failed)
+        return self._loader
+
+    def loading(self) -> bool:
+        """A file is being opened in the background."""
+        return self._loader is not None and self._loader.busy()
+
+    def _loaded(self, doc: Document, mark) -> None:
+        """A background load is done: show ``doc``, unless the window has closed meanwhile
+        or the user edited the current document and now keeps it."""
+        if getattr(self.win, "_closed", False):
+            return
+        doc_then, cell_then, saved_then = mark
+        kept = doc_then is self.doc and cell_then is self.doc.cell
+        kept = kept and saved_then == self.win.session.undo_stack.cleanIndex()
+        if not kept and not self.confirm_discard():  # edited (or saved) meanwhile: ask again
+            self.win.statusBar().showMessage(f"{doc.title} was not opened.", 6000)
+            return
+        self.win.session.load(doc)
+
+    def _mark(self) -> tuple:
+        """What the user agreed to let go: the document, its state, what was saved."""
+        return self.doc, self.doc.cell, self.win.session.undo_stack.cleanIndex()
+
     def _open_failed(self, message: str) -> bool:
-        QApplication.restoreOverrideCursor()
         self.win.statusBar().clearMessage()
         self.win.error("Cannot open the file", message)
         return False

@@ -76,6 +76,10 @@ def run_editor(
 ) -> int:
     """Open the editor on ``path`` (a model or scenario; None: the default example).
 
+    A big file (:func:`isochor.app.loading.in_background`) is read after the window
+    appears, on the default example, with its progress in the status bar and Cancel; a
+    small one, or any in screenshot mode, is read before the window is made.
+
     With ``screenshot``, solve the document's scenario to the end with the normal
     progressive redraw (at most ``timeout`` seconds, default :data:`SCREENSHOT_TIMEOUT`),
     save a PNG of the whole window there and return 0.
@@ -108,10 +112,14 @@ def run_editor(
     app.setOrganizationName("Isochor")
     style.apply_dark_theme(app)
 
+    from .loading import in_background
     from .mainwindow import MainWindow  # imports VTK: after the checks
 
     opening_error = None
-    if path is None:
+    # A big file opens in the window, in the background, with its progress shown; in
+    # screenshot mode (and for a small file) it is read before the window appears.
+    later = path is not None and not screenshot and in_background(path)
+    if path is None or later:
         doc = Document.example()
     else:
         try:
@@ -133,6 +141,8 @@ def run_editor(
         limit = SCREENSHOT_TIMEOUT if timeout is None else timeout
         return take_screenshot(app, window, screenshot, limit)
     window.show()
+    if later:
+        window.files.open_path(path)
     if opening_error is not None:
         window.error("Cannot open the file", opening_error)
     code = app.exec()
