@@ -90,7 +90,8 @@ def load_model(path: str | Path) -> Model:
     the default :data:`ModelLoader`."""
     source = SourceFile.of(path)
     loaded = load_mesh(path)
-    return Model(tuple(build_pyramid(loaded.mesh)), tuple(loaded.warnings), source)
+    levels = build_pyramid(loaded.mesh, bodies=loaded.bodies)
+    return Model(tuple(levels), tuple(loaded.warnings), source)
 
 
 def scenario_model(scenario: Scenario, loader: ModelLoader | None = None) -> Model:

@@ -37,7 +37,14 @@ import threading
 import numpy as np
 
 from .mesh import TriMesh
-from .repair import EdgeReport, body_labels, compact, drop_degenerate, drop_duplicates
+from .repair import (
+    EdgeReport,
+    balanced,
+    body_labels,
+    compact,
+    drop_degenerate,
+    drop_duplicates,
+)
 from .volume import signed_volume
 
 #: fewest triangles a simplified body may have
@@ -57,7 +64,11 @@ def volume_tolerance(n_faces: int) -> float:
 
 
 def build_pyramid(
-    mesh: TriMesh, min_faces: int = 16, ratio: float = 4.0, notes: list[str] | None = None
+    mesh: TriMesh,
+    min_faces: int = 16,
+    ratio: float = 4.0,
+    notes: list[str] | None = None,
+    bodies: int | None = None,
 ) -> list[TriMesh]:
     """Levels coarse to fine for the multi-level solve; the last is ``mesh`` itself.
 
@@ -68,16 +79,18 @@ def build_pyramid(
         ``min_faces`` to ``ratio * min_faces``)
     ratio : triangle ratio between neighbouring levels
     notes : when given, gets one line per rejected level (why), for benchmarks and tests
+    bodies : the number of bodies when known (as the cleaning counted them); 1 saves
+        looking for them again
     """
     lo, hi = mesh.bounds
     center, size = mesh.center, mesh.size
     if not size > 0:
         return [mesh]
     unit = TriMesh((mesh.vertices - center) / size, mesh.faces)
-    bodies = split_bodies(unit)
-    checks = [_BodyCheck(b, (lo - center) / size, (hi - center) / size) for b in bodies]
+    parts = [unit] if bodies == 1 else split_bodies(unit)
+    checks = [_BodyCheck(b, (lo - center) / size, (hi - center) / size) for b in parts]
     levels = [mesh]
-    current = bodies
+    current = parts
     while True:
         n = sum(b.n_faces for b in current)
         if n / ratio < min_faces:
@@ -107,8 +120,8 @@ class _BodyCheck:
 
     def problem(self, cand: TriMesh) -> str | None:
         """Why ``cand`` is not a good level of this body, or None."""
-        report = EdgeReport.of(cand.faces, cand.n_vertices)
-        if report.boundary or report.unbalanced:
+        if not balanced(cand.faces, cand.n_vertices):
+            report = EdgeReport.of(cand.faces, cand.n_vertices)
             return f"not closed ({report.boundary} boundary, {report.unbalanced} unbalanced edges)"
         if np.any(cand.vertices < self.lo) or np.any(cand.vertices > self.hi):
             return "a vertex far outside the model's bounding box"
