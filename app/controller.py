@@ -11,25 +11,47 @@ state was never solved, a new solve starts from it. Progress records arrive by q
 signals; the newest is kept and a frame timer hands it to the window, so the view redraws at
 most once per frame however fast records come. Records of any solve but the accepted one are
 dropped by their generation id, so a stale result never overwrites a newer state.
+
+Frames and the solver share two cores with a software renderer that uses both. A frame is
+measured whole (the window deforms, shades and renders it before ``frameReady`` returns:
+``frame_cost``); while a solve runs the next frame waits a share of that after the frame
+ends (``SOLVER_SHARE``, ``LIVE_SHARE`` for a live drag's previews). During a frame the
+solver is held between steps, and a frame waits (briefly) for a running step to end
+(:mod:`isochor.app.worker`).
 """
 
 from __future__ import annotations
 
+import sys
+import time
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtGui import QUndoStack
 
 from .commands import EditCommand
-from .document import Document, Edit, SolveSummary, StateCell, describe_status, plural
+from .document import Document, Edit, SolveSummary, StateCell, describe_status
+from .sessiondrag import LIVE_MS, DragMixin
 from .worker import SolveWorker
 
 FRAME_MS = 16  #: the redraw timer: at most one redraw per frame (~60 Hz)
-LIVE_MS = 40  #: during a live drag, restart the preview solve at most this often
+#: while a solve runs, the next frame waits this fraction of what the last one cost (its
+#: deformation, shading and render), at least FRAME_MS: the solver's share of the time;
+#: a live drag's preview solves need little (a few ms each), the view more
+SOLVER_SHARE, LIVE_SHARE = 0.5, 0.25
+#: Python's thread switch interval while a window runs, seconds (the default is 0.005):
+#: the GUI thread gets the GIL back from the solver thread this soon after asking for it;
+#: it asks at every call into Qt or VTK that released it, so the default made each frame
+#: wait for the GIL many times over
+SWITCH_INTERVAL = 0.0005
+#: a frame is put off while a solver step runs (it would share the cores), by this many ms
+#: at a time, at most DEFER_LIMIT_MS in all (the solver starts no new step meanwhile)
+DEFER_MS, DEFER_LIMIT_MS = 3, 150
 
 
-class EditorSession(QObject):
+class EditorSession(DragMixin, QObject):
     """The editing session of one window.
 
     Signals
@@ -43,8 +65,9 @@ class EditorSession(QObject):
     solveStarted() : a solve (or live preview) started
     recordAccepted(object) : a progress record of the accepted solve
     solveDone(int, bool) : an accepted solve ended (generation, success)
-    idle() : nothing runs and the last frame was handed out
+    idle() : nothing runs and the last frame was handed out (and drawn: ``view_busy``)
     failed(str) : the solver stopped with this message
+    flushed() : :meth:`flush` handed out the pending frame: the view finishes drawing it
     """
 
     documentLoaded = Signal()
@@ -58,9 +81,11 @@ class EditorSession(QObject):
     solveDone = Signal(int, bool)
     idle = Signal()
     failed = Signal(str)
+    flushed = Signal()
 
     def __init__(self, document: Document, parent: QObject | None = None) -> None:
         super().__init__(parent)
+        sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL))
         self.document = document
         self.undo_stack = QUndoStack(self)
         self.worker = SolveWorker(self)
@@ -68,15 +93,22 @@ class EditorSession(QObject):
         self.worker.finished.connect(self._on_finished)
         self.worker.failed.connect(self._on_failed)
         self.live = False  #: solve while dragging
-        self.frame_cost = 0.0  #: seconds the window took to draw the last frame
+        #: seconds the window took to draw the last frame, whole (deform, shade, render)
+        self.frame_cost = 0.0
+        #: the window is still drawing the last frame (a big model's full mesh): no idle
+        self.view_busy: Callable[[], bool] = lambda: False
         self.activity = "idle"  #: idle, solving, dragging, stopped or failed
         self._accept_gen: int | None = None  # the only generation whose records count
         self._solving_cell: StateCell | None = None
         self._live_preview = False  # the accepted solve is a live-drag preview
+        self._near_next = False  # the next solve starts from a live drag's last frame
+        self.last_solve_near = False  #: the last solve of a state started near (tests)
         self._pending: tuple[np.ndarray, object] | None = None  # the next frame
         self._view_ready = False  # the window drew once: solves may start
         self._deferred = False
         self._idle_owed = False
+        self._shut = False
+        self._put_off_since: float | None = None  # the pending frame was put off since
         # what the tests read
         self.frames_by_generation: dict[int, int] = {}
         self.accepted_log: deque[tuple[int, str]] = deque(maxlen=50_000)
@@ -85,9 +117,10 @@ class EditorSession(QObject):
         self.last_solve_input: tuple[np.ndarray, np.ndarray, object] | None = None
         self.last_result = None
 
-        self.frame_timer = QTimer(self)
+        self.frame_timer = QTimer(self)  # single shot, restarted after each frame
+        self.frame_timer.setSingleShot(True)
         self.frame_timer.setInterval(FRAME_MS)
-        self.frame_timer.timeout.connect(self._on_frame)
+        self.frame_timer.timeout.connect(lambda: self._on_frame())
         self.frame_timer.start()
         self.live_timer = QTimer(self)
         self.live_timer.setSingleShot(True)
@@ -163,84 +196,6 @@ class EditorSession(QObject):
         self._pending = (self.document.view_nodes(), None)
         self._solve_if_needed()
 
-    # -- the drag ----------------------------------------------------------------------------
-    def begin_drag(self, verb: str = "Move") -> bool:
-        """Start a drag (or a grab, rotate or scale: ``verb``) of the selection."""
-        return self._start_drag(lambda: self.document.begin_drag(verb))
-
-    def begin_handle_drag(self, index: int | None = None, at=None) -> bool:
-        """Start dragging handle ``index``'s target, or a new handle on the rest point
-        ``at``; the drag's moves, finish and cancel are a node drag's."""
-        return self._start_drag(lambda: self.document.begin_handle_drag(index, at))
-
-    def _start_drag(self, begin) -> bool:
-        """Stop the solve and start the drag ``begin()`` makes (False when it makes none)."""
-        base = self.document.base_nodes()
-        self._stop()
-        self.document.live_nodes = base if self.document.preserve else None
-        if begin() is None:
-            return False
-        self.activity = "dragging"
-        self._pending = (base, None)
-        self.statusChanged.emit()
-        return True
-
-    def drag_to(self, delta) -> None:
-        """The dragged nodes moved by ``delta`` (3,) from where the drag started."""
-        self._drag_by("move", delta)
-
-    def drag_transform(self, matrix) -> None:
-        """The dragged nodes mapped by the (4, 4) affine ``matrix`` from where they were."""
-        self._drag_by("transform", matrix)
-
-    def _drag_by(self, how: str, value) -> None:
-        drag = self.document.drag
-        if drag is None:
-            return
-        live = self._live_active()
-        nodes = getattr(drag, how)(value, self.document.live_nodes if live else None)
-        self._pending = (nodes, None)
-        if live and not self.live_timer.isActive():
-            self.live_timer.start()
-
-    def finish_drag(self) -> None:
-        self.live_timer.stop()
-        self._stop()
-        self._live_preview = False
-        self.activity = "idle"
-        self.commit(self.document.end_drag())
-
-    def cancel_drag(self) -> None:
-        drag = self.document.drag
-        if drag is None:
-            return
-        self._stop()
-        self._live_preview = False
-        self.document.cancel_drag()
-        self.document.set_cell(drag.before)
-
-    def drag_text(self, lock: str = "") -> str:
-        drag = self.document.drag
-        if drag is None:
-            return ""
-        lock = f" — locked to the {lock}" if lock else ""
-        what = plural(len(drag.rows)) if len(drag.rows) else "the handle"
-        return f"Moving {what}{lock} — X/Y/Z lock an axis, Shift+X/Y/Z a plane, Esc cancels"
-
-    def _live_active(self) -> bool:
-        return self.live and self.document.preserve
-
-    def _live_solve(self) -> None:
-        """Restart the preview solve from the nodes on screen (free nodes where the last
-        preview left them, the dragged ones under the cursor)."""
-        drag = self.document.drag
-        if drag is None:
-            return
-        base = self.document.live_nodes if self.document.live_nodes is not None else drag.nodes
-        self._solving_cell = None
-        self._live_preview = True
-        self._begin(drag.before.state, drag.with_dragged(base), drag.fixed(), drag.handles)
-
     # -- solving -----------------------------------------------------------------------------
     def busy(self) -> bool:
         """A solve runs, or one waits for the first frame and will start then."""
@@ -275,14 +230,24 @@ class EditorSession(QObject):
         self._solving_cell = self.document.cell
         self._live_preview = False
         self.last_solve_input = (np.array(st.nodes), np.array(st.fixed_axes), st.goal)
-        self._begin(st, st.nodes, st.fixed_axes, st.handles)
+        # after a live drag the nodes are its last frame: start near them
+        self.last_solve_near, self._near_next = self._near_next, False
+        self._begin(st, st.nodes, st.fixed_axes, st.handles, near=self.last_solve_near)
 
-    def _begin(self, st, nodes, fixed, handles=()) -> None:
+    def _begin(self, st, nodes, fixed, handles=(), live: bool = False, near=False) -> None:
         """Solve ``nodes`` with the (n, 3) ``fixed`` coordinates and the ``handles``, to
-        ``st``'s goal."""
+        ``st``'s goal; ``live``: a live drag's preview (solved on a coarse level only);
+        ``near``: the nodes are a live drag's last frame."""
         self._deferred = False
         gen = self.worker.start(
-            st.surface, nodes, fixed, goal=st.goal, options=st.problem.options, handles=handles
+            st.surface,
+            nodes,
+            fixed,
+            goal=st.goal,
+            options=st.problem.options,
+            handles=handles,
+            live=live,
+            near=near,
         )
         self._accept_gen = gen
         if not self._live_preview:
@@ -366,34 +331,66 @@ class EditorSession(QObject):
         )
 
     # -- frames ------------------------------------------------------------------------------
-    def _on_frame(self) -> None:
-        """The frame timer: hand out the newest pending nodes, if any (once a frame)."""
+    def _on_frame(self, now: bool = False) -> None:
+        """The frame timer: hand out the newest pending nodes, if any (once a frame);
+        ``now``: without putting it off for a running solver step."""
+        wait = FRAME_MS
         if self._pending is not None:
+            # the frame gets the cores, the solver the time after it: no new step now, and
+            # a step that runs ends before the frame is drawn (or DEFER_LIMIT_MS passed)
+            self.worker.hold()
+            if not now and self._put_off():
+                if not self._shut:
+                    self.frame_timer.start(DEFER_MS)
+                return
+            self._put_off_since = None
             nodes, record = self._pending
             self._pending = None
-            if len(nodes) == self.document.state.lattice.n_nodes:
-                gen = self._accept_gen
-                if gen is not None and record is not None:
-                    self.frames_by_generation[gen] = self.frames_by_generation.get(gen, 0) + 1
-                self.frameReady.emit(nodes, record)
-            # A software renderer can take longer than a frame and holds the GIL meanwhile:
-            # while a solve runs, leave its thread more time than the last frame took.
-            cost = int(1500 * self.frame_cost) if self._accept_gen is not None else 0
-            self.frame_timer.setInterval(max(FRAME_MS, cost))
-        if self._idle_owed and self._pending is None and not self.busy():
+            try:
+                self._hand_out(nodes, record)
+            finally:
+                self.worker.release()
+            # A software renderer takes both cores for a frame: while a solve runs, the
+            # next frame waits a share of what this one cost, counted from its end.
+            if self._accept_gen is not None:
+                share = LIVE_SHARE if self._live_preview else SOLVER_SHARE
+                wait = max(FRAME_MS, int(1000 * share * self.frame_cost))
+        else:
+            self.worker.release()
+        if self._idle_owed and self._pending is None and not self.busy() and not self.view_busy():
             self._idle_owed = False
             self.idle.emit()
+        if not self._shut:
+            self.frame_timer.start(wait)
+
+    def _put_off(self) -> bool:
+        """Put the frame off a little: a solver step runs (see :mod:`isochor.app.worker`)."""
+        if not self.worker.stepping_now():
+            return False
+        t = time.perf_counter()
+        if self._put_off_since is None:
+            self._put_off_since = t
+        return t - self._put_off_since < DEFER_LIMIT_MS / 1000
+
+    def _hand_out(self, nodes, record) -> None:
+        if len(nodes) == self.document.state.lattice.n_nodes:
+            gen = self._accept_gen
+            if gen is not None and record is not None:
+                self.frames_by_generation[gen] = self.frames_by_generation.get(gen, 0) + 1
+            self.frameReady.emit(nodes, record)  # drawn and rendered: frame_cost
 
     def redraw(self) -> None:
         """Draw the current state again at the next frame (the timeline changed the view)."""
         self._pending = (self.document.base_nodes(), None)
 
     def flush(self) -> None:
-        """Hand out the pending frame now (before a screenshot)."""
-        self._on_frame()
+        """Hand out the pending frame now and have it drawn whole (before a screenshot)."""
+        self._on_frame(now=True)
+        self.flushed.emit()
 
     def shutdown(self) -> None:
         """Stop the timers and the worker (waits at most half a second)."""
+        self._shut = True
         self.frame_timer.stop()
         self.live_timer.stop()
         self._stop()

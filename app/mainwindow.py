@@ -6,15 +6,14 @@ the user does into calls on it (edits come from the document's rules) and draws 
 signals say: the view (:mod:`isochor.app.viewport`), the Inspector panel, the convergence
 plot; the status bar, the notes and the marks on the view are :mod:`isochor.app.readout`.
 Menus and the toolbar are :mod:`isochor.app.actions`; the file commands
-:mod:`isochor.app.files`.
+:mod:`isochor.app.files`; the frames (a big model's proxy while it moves)
+:mod:`isochor.app.framedraw`.
 """
 
 from __future__ import annotations
 
 import sys
-import time
 
-import numpy as np
 from PySide6.QtCore import QPoint, Qt, QTimer, Signal
 from PySide6.QtGui import QIcon
 from PySide6.QtWidgets import QDockWidget, QMainWindow, QMenu, QMessageBox, QScrollArea
@@ -25,13 +24,14 @@ from . import actions, handletools, tools
 from .controller import EditorSession
 from .document import Document, plural
 from .files import FileCommands
+from .framedraw import FramesMixin
 from .panel import Panel, bind
 from .plot import ConvergencePlot
 from .readout import Readout
 from .viewport import Viewport
 
 
-class MainWindow(QMainWindow):
+class MainWindow(FramesMixin, QMainWindow):
     """The editor window.
 
     Signals
@@ -58,6 +58,7 @@ class MainWindow(QMainWindow):
         self.files = FileCommands(self)
         self.panel = Panel()
         self.plot = ConvergencePlot()
+        self.plot.deferred = True  # repainted with the frames (_draw)
         self._build_docks()
         actions.build(self)
         self.readout = Readout(self)
@@ -126,6 +127,10 @@ class MainWindow(QMainWindow):
         s.solveDone.connect(self._solve_done)
         s.failed.connect(lambda message: self.error("The solver stopped", message))
         s.idle.connect(self.idle.emit)
+        s.view_busy = self._view_busy  # idle once the full mesh is drawn
+        vp.moving_hint = self.moving
+        s.flushed.connect(vp.finish_model)
+        vp.modelDrawn.connect(lambda: self.readout.frame(None))
         # solves start after the view's first paint (queued: not from inside the paint)
         vp.firstPainted.connect(s.view_ready, Qt.ConnectionType.QueuedConnection)
         s.undo_stack.cleanChanged.connect(self.update_title)
@@ -205,11 +210,11 @@ class MainWindow(QMainWindow):
         self.readout.show_state()
         self.panel.show_target(st.target_ratio * 100)
         handletools.show(self)
-        self._selection_changed()
+        self._selection_changed(repaint=False)  # (the state's frame follows: it repaints)
         self._status_changed()
 
-    def _selection_changed(self) -> None:
-        self.viewport.set_selection(self.doc.selection)
+    def _selection_changed(self, repaint: bool = True) -> None:
+        self.viewport.set_selection(self.doc.selection, repaint)
         self._show_selection()
 
     def _show_selection(self) -> None:
@@ -227,42 +232,6 @@ class MainWindow(QMainWindow):
 
     def _status_changed(self) -> None:
         self.readout.status_changed()
-
-    def _draw(self, nodes: np.ndarray, record=None) -> None:
-        t0 = time.perf_counter()
-        st = self.state
-        if self.timeline.shown is not None:  # a frame of the timeline, not the working edit
-            nodes, record = self.timeline.shown, None
-        self.viewport.set_frame(nodes, st.surface.deform(nodes))
-        self.viewport.update()
-        self.redraws += 1
-        self.readout.frame(record)
-        self.timeline.drawn()  # (a frame's own target volume)
-        if record is not None:
-            self.plot.update()
-        self._show_selection()  # (the scene moved the selection markers with the nodes)
-        self.session.frame_cost = time.perf_counter() - t0 + self.viewport.paint_seconds
-
-    def _solve_started(self) -> None:
-        st = self.state
-        self.plot.reset(
-            st.surface.size, st.problem.scenario.tol_volume, st.problem.scenario.tol_nodes
-        )
-
-    def _record(self, record) -> None:
-        self.plot.add(
-            record.elapsed, record.nodes, record.rel_volume_error, record.level, record.level_done
-        )
-
-    def _solve_done(self, gen: int, ok: bool) -> None:
-        result = self.session.last_result
-        if result is not None:
-            self.plot.finish(result.nodes)
-        if self._frame_after_solve and self.doc.drag is None:
-            self._frame_after_solve = False
-            self.session.flush()
-            self.viewport.frame()
-        self.solveDone.emit(gen, ok)
 
     def update_title(self, *_args) -> None:
         star = "" if self.session.undo_stack.isClean() else " *"

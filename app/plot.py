@@ -25,7 +25,8 @@ FLOOR = 1e-8  # values below this are drawn at it
 
 class ConvergencePlot(QWidget):
     """Call :meth:`reset` when a solve starts, :meth:`add` per progress record and
-    :meth:`finish` with the final nodes; :meth:`update` repaints."""
+    :meth:`finish` with the final nodes; :meth:`update` repaints (with ``deferred``,
+    :meth:`refresh` repaints what reset and finish changed)."""
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent)
@@ -34,6 +35,9 @@ class ConvergencePlot(QWidget):
         self.size_ref = 1.0
         self.tol_volume = 5e-4
         self.tol_nodes = 1e-3
+        #: reset() and finish() leave the repaint to :meth:`refresh` (``stale``)
+        self.deferred = False
+        self.stale = False
         self.reset()
 
     def sizeHint(self) -> QSize:
@@ -50,7 +54,7 @@ class ConvergencePlot(QWidget):
         self.nodes: list[np.ndarray] = []
         self.level_ends: list[tuple[float, int]] = []
         self.final = False
-        self.update()
+        self._changed()
 
     def add(
         self, t: float, nodes: np.ndarray, rel_volume_error: float, level: int, level_done: bool
@@ -72,7 +76,21 @@ class ConvergencePlot(QWidget):
         err = np.max(np.abs(stack - np.asarray(final_nodes)[None]), axis=(1, 2)) / self.size_ref
         self.node_change = [float(e) for e in err]
         self.final = True
-        self.update()
+        self._changed()
+
+    def _changed(self) -> None:
+        if self.deferred:
+            self.stale = True
+        else:
+            self.update()
+
+    def refresh(self) -> None:
+        """Repaint now if anything changed (the window calls it with each frame, so that
+        the plot is drawn with the frame: every repaint of a window that holds an OpenGL
+        view composes the whole window again)."""
+        if self.stale:
+            self.stale = False
+            self.update()
 
     # -- painting ----------------------------------------------------------------------------
     def paintEvent(self, ev) -> None:

@@ -93,14 +93,36 @@ class Readout:
         )
         win.st_time.setText(f"{1000 * r.elapsed:.0f} ms")
 
+    def know_volume(self, nodes) -> None:
+        """When ``nodes`` are the current state's solved nodes, give the view the full
+        mesh's volume its solve measured (no full-mesh volume is computed for the frame)."""
+        win = self.win
+        st = win.state
+        r = st.result
+        if not (win.doc.preserve and st.solved and r is not None and r.levels):
+            return
+        if np.array_equal(np.asarray(nodes), st.nodes):
+            rest = st.surface.rest_volume
+            volume = rest * st.target_ratio + r.rel_volume_error * abs(rest)
+            win.viewport.scene.model.know_volume(nodes, volume)
+
     def frame(self, record) -> None:
         """The labels of a drawn frame: the volume as drawn, the progress record's numbers."""
         win = self.win
         st = win.state
-        win.st_volume.setText(
-            f"Volume {100 * win.viewport.model_volume / st.surface.rest_volume:.2f}"
-            f" % (target {100 * st.target_ratio:.4g} %)"
-        )
+        scene = win.viewport.scene
+        pct = 100 * scene.volume / st.surface.rest_volume
+        if scene.volume_estimated:  # a big model's proxy is drawn: never the full mesh's
+            text = f"Volume ≈ {pct:.2f} % (preview; target {100 * st.target_ratio:.4g} %)"
+            tip = (
+                "Estimated on the coarser version of the model drawn while it moves; "
+                "measured on the full mesh when it stops."
+            )
+        else:
+            text = f"Volume {pct:.2f} % (target {100 * st.target_ratio:.4g} %)"
+            tip = "The volume of the full mesh as drawn."
+        win.st_volume.setText(text)
+        win.st_volume.setToolTip(tip)
         if record is not None:
             win.st_level.setText(
                 f"Level {record.level + 1}/{record.n_levels} · {record.triangles:,} triangles"

@@ -10,45 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 import pyvista as pv
-import scipy.sparse as sp
 
-from ..core.volume import signed_volume
 from . import style
 from .glyphs import glyph_size, halo_actor, node_actor, role_shapes
-
-
-class Shading:
-    """Vertex normals of a deforming mesh with a fixed face list.
-
-    The face normals are gathered to the vertices by a sparse incidence matrix built once,
-    so a frame costs a few milliseconds even for a few hundred thousand triangles.
-    """
-
-    def __init__(self, faces: np.ndarray, n_vertices: int) -> None:
-        self.faces = np.ascontiguousarray(faces, dtype=np.int64)
-        f = len(self.faces)
-        self._gather = sp.csr_matrix(
-            (np.ones(3 * f), (self.faces.ravel(), np.repeat(np.arange(f), 3))),
-            shape=(n_vertices, f),
-        )
-
-    def __call__(self, points: np.ndarray) -> np.ndarray:
-        """(m, 3) unit vertex normals (zero-area neighbourhoods get (0, 0, 0))."""
-        a, b, c = (points[self.faces[:, k]] for k in range(3))
-        vn = self._gather @ np.cross(b - a, c - a)
-        norm = np.sqrt(np.einsum("ij,ij->i", vn, vn))[:, None]
-        norm[norm == 0] = 1.0
-        return vn / norm
-
-
-def _cells(edges: np.ndarray) -> np.ndarray:
-    """VTK cell array of equal-sized cells: ``[k, i0, .., ik-1, k, ...]``."""
-    edges = np.asarray(edges, dtype=np.int64)
-    return np.hstack([np.full((len(edges), 1), edges.shape[1], dtype=np.int64), edges]).ravel()
-
-
-def _rgb(color: str) -> np.ndarray:
-    return np.array(style.hex_to_rgb(color), dtype=np.uint8)
+from .modelview import ModelView
+from .modelview import cells as _cells
+from .modelview import rgb as _rgb
 
 
 class Scene:
@@ -59,26 +26,44 @@ class Scene:
         self.actors: dict[str, object] = {}
         self.nodes = np.zeros((0, 3))
         self.selection = np.zeros(0, dtype=int)
-        self.volume = 0.0  #: signed volume of the model as drawn
+        self.model = ModelView(plotter)  #: the model: the full mesh, or its proxy
         self.show_lattice = True
         self.show_diagonals = True
-        self.smooth = True
 
     @property
     def built(self) -> bool:
         return "model" in self.actors
 
+    @property
+    def smooth(self) -> bool:
+        return self.model.smooth
+
+    @property
+    def volume(self) -> float:
+        """Signed volume of the model at the nodes drawn: the full mesh's (measured), or
+        while the proxy is drawn its estimate (:attr:`volume_estimated`)."""
+        return self.model.volume
+
+    @property
+    def volume_estimated(self) -> bool:
+        return self.model.estimated
+
+    @property
+    def folded(self) -> int:
+        return self.model.folded
+
     def model_points(self) -> np.ndarray:
-        """(m, 3) the model's vertices as drawn (deformed)."""
-        return np.asarray(self._model.points)
+        """(m, 3) the full mesh's vertices at the nodes drawn (deformed), also while the
+        proxy is on screen: what picking uses."""
+        return self.model.points()
 
     def model_faces(self) -> np.ndarray:
         """(f, 3) the model's triangles (the full mesh's)."""
-        return self._faces
+        return self.model.faces()
 
     def bounds(self) -> np.ndarray:
-        """(2, 3) lowest and highest corner of the model as drawn."""
-        return np.asarray(self._model.bounds).reshape(3, 2).T
+        """(2, 3) lowest and highest corner of the model at the nodes drawn."""
+        return self.model.bounds()
 
     def build(self, surface, nodes: np.ndarray, pin_axes, moved, held=None) -> None:
         """Replace every actor for a new model or lattice (not called per frame)."""
@@ -86,12 +71,11 @@ class Scene:
         for actor in self.actors.values():
             p.remove_actor(actor, render=False)
         self.actors.clear()
-        full = surface.full
-        faces = np.asarray(full.faces)
         self.nodes = np.array(nodes, dtype=np.float64)
         self.selection = np.zeros(0, dtype=int)
 
-        ghost = pv.PolyData(np.array(full.vertices), _cells(faces))
+        rest = self.model.ghost_mesh(surface)
+        ghost = pv.PolyData(np.array(rest.vertices), _cells(np.asarray(rest.faces)))
         self.actors["ghost"] = p.add_mesh(
             ghost,
             color=style.GHOST,
@@ -103,28 +87,10 @@ class Scene:
         )
         self.actors["ghost"].SetVisibility(False)
 
-        points = surface.deform(self.nodes)
-        self._shading = Shading(faces, len(points))
-        self._faces = faces
-        model = pv.PolyData(points, _cells(faces))  # normals: set_smooth below
-        # per-vertex colours: the clay, and the folded part of a result (set_folds)
-        model.point_data["colors"] = np.tile(_rgb(style.MODEL), (len(points), 1))
-        self.folded = 0  #: how many vertices are marked folded
-        self.volume = signed_volume(points, faces)
-        self._model = model
-        self.actors["model"] = p.add_mesh(
-            model,
-            scalars="colors",
-            rgb=True,
-            smooth_shading=False,
-            specular=0.25,
-            specular_power=20,
-            diffuse=0.85,
-            ambient=0.12,
-            show_scalar_bar=False,
-            render=False,
-            name="model",
-        )
+        self.model.build(surface, self.nodes, self.model.smooth)
+        self.actors["model"] = self.model.full.actor
+        if self.model.proxy is not None:
+            self.actors["proxy"] = self.model.proxy.actor
 
         edges = np.asarray(surface.springs.edges)
         lattice = surface.lattice
@@ -188,21 +154,17 @@ class Scene:
         self.actors["guide"].SetVisibility(False)
 
         self.set_roles(pin_axes, moved, held)
-        self.set_smooth(self.smooth)
         self._apply_visibility()
 
-    def set_frame(self, nodes: np.ndarray, points: np.ndarray | None) -> None:
-        """Move the lattice (and the model, if ``points`` is given) to new positions."""
+    def set_frame(self, nodes: np.ndarray, moving: bool = False) -> None:
+        """Move the lattice and the model to new node positions; while ``moving`` a big
+        model is drawn as its proxy (:mod:`isochor.app.modelview`)."""
         self.nodes = np.array(nodes, dtype=np.float64)
         self._nodes_poly.points[:] = self.nodes
         self._nodes_poly.Modified()
         self._springs_axis.points[:] = self.nodes
         self._springs_diag.points[:] = self.nodes
-        if points is not None:
-            self._model.points[:] = points
-            self.volume = signed_volume(points, self._faces)
-            if self.smooth:
-                self._model.point_data["Normals"][:] = self._shading(points)
+        self.model.draw(self.nodes, moving)
         self._update_selection()
 
     def set_roles(self, pin_axes: np.ndarray, moved: np.ndarray, held=None) -> None:
@@ -228,20 +190,11 @@ class Scene:
     def set_folds(self, vertices: np.ndarray | None) -> None:
         """Mark the folded vertices of the model (a (m,) bool mask over the full mesh's
         vertices), or clear the marks (None)."""
-        colors = self._model.point_data["colors"]
-        mask = None if vertices is None else np.asarray(vertices, bool)
-        count = 0 if mask is None else int(mask.sum())
-        if count == 0 and self.folded == 0:
-            return
-        colors[:] = _rgb(style.MODEL)
-        if count:
-            colors[mask] = _rgb(style.FOLDED)
-        self.folded = count
-        self._model.Modified()
+        self.model.set_folds(vertices)
 
     def model_colours(self) -> np.ndarray:
-        """(m, 3) uint8: each model vertex's colour as drawn."""
-        return np.array(self._model.point_data["colors"])
+        """(m, 3) uint8: each full-mesh vertex's colour as drawn."""
+        return self.model.colours()
 
     def set_selection(self, rows) -> None:
         self.selection = np.asarray(rows, dtype=int)
@@ -251,14 +204,7 @@ class Scene:
         self.actors["ghost"].SetVisibility(bool(on))
 
     def set_smooth(self, on: bool) -> None:
-        self.smooth = bool(on)
-        model = self._model
-        if on:
-            model.point_data["Normals"] = self._shading(np.asarray(model.points))
-            model.point_data.active_normals_name = "Normals"
-        else:
-            model.GetPointData().SetNormals(None)
-        model.Modified()
+        self.model.set_smooth(on)
 
     def set_lattice_visible(self, on: bool, diagonals: bool | None = None) -> None:
         self.show_lattice = bool(on)

@@ -45,6 +45,7 @@ from .gestures import (
     NodePress,
 )
 from .handleview import HandleViewMixin
+from .modeldraw import ModelDrawMixin
 from .overlays import Gizmo, HandleMarkers, Overlay
 from .scene import Scene
 from .viewtools import ToolsMixin
@@ -53,7 +54,7 @@ from .viewtools import ToolsMixin
 DRAG_THRESHOLD = 3.0
 
 
-class Viewport(ToolsMixin, HandleViewMixin, CameraMixin, QtInteractor):
+class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInteractor):
     """The pyvistaqt view with Isochor's actors and node interaction.
 
     Signals
@@ -77,6 +78,7 @@ class Viewport(ToolsMixin, HandleViewMixin, CameraMixin, QtInteractor):
                                 or of a new handle's on the model (-1, triangle, weights);
                                 its moves are ``dragMoved``'s, its end ``dragFinished``'s
     handleMenuRequested(int, QPoint) : a right click on handle i's marker, global pos
+    modelDrawn() : a big model's full mesh is on screen again after its proxy
     """
 
     selectRequested = Signal(object, str)
@@ -95,6 +97,7 @@ class Viewport(ToolsMixin, HandleViewMixin, CameraMixin, QtInteractor):
     handlePlaced = Signal(int, object)
     handleDragStarted = Signal(int, int, object)
     handleMenuRequested = Signal(int, QPoint)
+    modelDrawn = Signal()
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent, auto_update=False, multi_samples=0)
@@ -137,7 +140,8 @@ class Viewport(ToolsMixin, HandleViewMixin, CameraMixin, QtInteractor):
 
     @property
     def model_volume(self) -> float:
-        """Signed volume of the model as drawn."""
+        """Signed volume of the model at the nodes drawn (while a big model's proxy is on
+        screen, an estimate: ``scene.volume_estimated``)."""
         return self.scene.volume
 
     def set_scene(
@@ -158,16 +162,12 @@ class Viewport(ToolsMixin, HandleViewMixin, CameraMixin, QtInteractor):
             # on the next resize (the first show, a window resized before it is shown).
             self._needs_home = True
 
-    def set_frame(self, nodes: np.ndarray, points: np.ndarray | None) -> None:
-        self.scene.set_frame(nodes, points)
-        if self._drag is not None or self._transform is not None:
-            self._update_guide()
-        self.show_gizmo()
-
-    def set_selection(self, rows) -> None:
+    def set_selection(self, rows, repaint: bool = True) -> None:
+        """Mark the selected nodes; ``repaint`` False: a frame that follows draws them."""
         self.scene.set_selection(rows)
         self.show_gizmo()
-        self.update()
+        if repaint:
+            self.update()
 
     def show_info(self, text: str) -> None:
         """A one-line note at the bottom left of the view (empty hides it)."""
@@ -264,18 +264,21 @@ class Viewport(ToolsMixin, HandleViewMixin, CameraMixin, QtInteractor):
             if (row < 0 or row in self.selection) and not shift and self._gizmo_press(pos):
                 return
             if not shift and self._handle_press(pos):
+                self.hold_proxy()
                 return
             if row >= 0:
                 if shift:
                     self.selectRequested.emit([row], "toggle")
                     self._press = IgnorePress()
                     return
+                self.hold_proxy()  # a drag may follow: what the press redraws is the proxy
                 if row not in self.selection:
                     self.selectRequested.emit([row], "replace")
                 self._press = NodePress(row, pos)
                 return
             ctrl = bool(ev.modifiers() & Qt.KeyboardModifier.ControlModifier)
             if (self.handle_mode or ctrl) and not shift and self._model_press(pos):
+                self.hold_proxy()
                 return
             if shift or self.box_mode:
                 self._press = BoxPress(pos, shift)
@@ -319,6 +322,11 @@ class Viewport(ToolsMixin, HandleViewMixin, CameraMixin, QtInteractor):
             super().mouseMoveEvent(ev)
 
     def mouseReleaseEvent(self, ev) -> None:
+        dragged = self._drag is not None
+        self._release(ev)
+        self.end_press(dragged)
+
+    def _release(self, ev) -> None:
         pos = ev.position()
         press, self._press = self._press, None
         if self._drag is not None and isinstance(press, IgnorePress):  # a gizmo arrow

@@ -10,6 +10,15 @@ then closes the generator itself (a generator must be closed by the thread runni
 The flag is set under the same lock the thread holds while it emits, so once
 :meth:`SolveWorker.stop` returns, the stopped solve emits nothing more; records it emitted
 earlier may still be queued, and the receiver drops them by their generation id.
+
+While the window draws a frame it *holds* the worker (:meth:`SolveWorker.hold`): the
+thread waits before its next step until the frame is drawn (:meth:`SolveWorker.release`),
+at most :data:`HOLD_LIMIT` seconds. A software renderer draws on every core, and a solver
+step running meanwhile would make the frame, a stall of the window, last longer; so the
+window also puts a frame off while a step runs (:meth:`SolveWorker.stepping_now`), and the
+frame scheduler gives the solver its time between frames. (The thread marks its step
+before it looks at the gate, the window clears the gate before it looks at the mark: one
+of them always sees the other.)
 """
 
 from __future__ import annotations
@@ -17,7 +26,8 @@ from __future__ import annotations
 import sys
 import threading
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import numpy as np
 from PySide6.QtCore import QObject, Signal
@@ -26,6 +36,9 @@ from ..core.constraints import Goal
 from ..core.errors import IsochorError
 from ..core.multilevel import solve
 from ..core.solver import SolverOptions
+
+#: a held worker waits at most this long for :meth:`SolveWorker.release`, seconds
+HOLD_LIMIT = 0.25
 
 
 class _Job:
@@ -58,11 +71,15 @@ class _Job:
             gen = self.make()
             try:
                 while not self.stop_flag.is_set():
-                    try:
-                        record = next(gen)
-                    except StopIteration as stop:
-                        self._emit(w.finished, stop.value)
-                        return
+                    free = w.gate.wait(HOLD_LIMIT)  # (the window draws a frame)
+                    with w.stepping():
+                        if free and not w.gate.is_set():
+                            continue  # a frame began meanwhile: it draws first
+                        try:
+                            record = next(gen)
+                        except StopIteration as stop:
+                            self._emit(w.finished, stop.value)
+                            return
                     self._emit(w.progress, record)
             finally:
                 gen.close()  # on this thread, which is the one running it
@@ -94,6 +111,33 @@ class SolveWorker(QObject):
         self._generation = 0
         self._job: _Job | None = None
         self._stopped: list[_Job] = []
+        self.gate = threading.Event()  #: set: the solver may step; clear: held
+        self.gate.set()
+        self._stepping = 0
+        self._count_lock = threading.Lock()
+
+    def hold(self) -> None:
+        """The solver waits before its next step until :meth:`release` (or
+        :data:`HOLD_LIMIT` seconds): the window draws a frame meanwhile."""
+        self.gate.clear()
+
+    def release(self) -> None:
+        self.gate.set()
+
+    def stepping_now(self) -> bool:
+        """A solver thread is inside a step (of any job, a stopped one's last included)."""
+        return self._stepping > 0
+
+    @contextmanager
+    def stepping(self) -> Iterator[None]:
+        """A solver thread's step (see :meth:`stepping_now`)."""
+        with self._count_lock:
+            self._stepping += 1
+        try:
+            yield
+        finally:
+            with self._count_lock:
+                self._stepping -= 1
 
     @property
     def generation(self) -> int:
@@ -114,19 +158,35 @@ class SolveWorker(QObject):
         target_ratio: float = 1.0,
         options: SolverOptions | None = None,
         handles=(),
+        live: bool = False,
+        near: bool = False,
     ) -> int:
         """Stop the running solve and start a new one; returns its generation id.
 
         ``fixed`` is (n,) bool (whole nodes) or (n, 3) bool (coordinates); ``goal`` is what
         to hold (by default the volume at ``target_ratio``); ``handles`` are the surface
-        handles (:class:`isochor.core.handles.Handle`)."""
+        handles (:class:`isochor.core.handles.Handle`); ``live``: a live drag's frame,
+        solved on a coarse level only and never on the full mesh (its result is a
+        ``preview``, see :func:`isochor.core.multilevel.solve`); ``near``: ``nodes`` are the
+        last frame of a live drag, so the solve starts on the level that agrees with the
+        full mesh there (see the same)."""
         nodes = np.array(nodes, dtype=np.float64)
         fixed = np.array(fixed, dtype=bool)
         goal = goal if goal is not None else Goal(target_ratio=target_ratio)
         handles = tuple(handles)
+        live, near = bool(live), bool(near)
 
         def make():
-            return solve(surface, nodes, fixed, goal=goal, handles=handles, options=options)
+            return solve(
+                surface,
+                nodes,
+                fixed,
+                goal=goal,
+                handles=handles,
+                options=options,
+                live=live,
+                near=near,
+            )
 
         return self.run(make)
 
@@ -157,6 +217,7 @@ class SolveWorker(QObject):
         its own after that step, emitting nothing (it is a daemon thread)."""
         import time
 
+        self.release()
         self.stop()
         deadline = time.monotonic() + timeout
         for job in self._stopped:

@@ -1,0 +1,313 @@
+"""The window's rows of the Display rate section (issue 9), measured in the real window.
+
+:func:`run_window` opens the 346k-triangle armadillo in the editor window in this process
+(it needs a display: ``xvfb-run``, software OpenGL there), turns live solving on and drags a
+lattice node with mouse events sent by a timer at 60 Hz for :data:`DRAG_SECONDS`, then
+releases it and waits until the solve of the release has ended and its result is drawn.
+Each repeat undoes the drag first, so every repeat drags the same node the same way.
+
+What it measures, each a median of the repeats:
+
+* redraws per second while dragging: the frames the window drew (a redraw is one call of
+  its frame handler: the model deformed, shaded and rendered at new node positions) over
+  the drag's duration; shown as milliseconds per redraw, the target 15 a second;
+* the longest GUI-thread stall: a precise timer ticks every :data:`TICK_MS` ms on the GUI
+  thread and the largest gap between two ticks is the longest time the GUI thread did not
+  answer, from the press to the release solve's result (drawn or not);
+* the longest stall while the result is drawn at full resolution (after the solve ended),
+  reported on its own so that it is never hidden in the row before.
+
+The event loop is a real one (``QEventLoop.exec``) the whole time: nothing here sleeps on
+the GUI thread, so a gap is the window's own work or the solver thread's hold on the GIL.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.display import Row
+from benchmarks.scale import ARMADILLO
+from benchmarks.timing import Timing
+
+#: how long each drag lasts, seconds
+DRAG_SECONDS = 2.0
+#: the mouse moves this often while dragging, ms
+MOVE_MS = 16
+#: the stall meter ticks this often, ms
+TICK_MS = 4
+RATE_TARGET = 15.0  #: redraws a second while dragging, at least
+STALL_TARGET = 0.050  #: seconds, at most
+
+WHAT_RATE = "window: redraws while dragging the 346k armadillo (ms a redraw)"
+WHAT_STALL = "window: longest GUI stall, drag and release solve, 346k armadillo"
+WHAT_FINAL = "window: longest GUI stall drawing the released result at full resolution"
+FINAL_WHY = (
+    "one render of the full 346k triangles in software OpenGL, which no step can split "
+    "(preparing them runs in steps)"
+)
+
+
+def _unmeasured(why: str) -> list[Row]:
+    return [
+        Row(WHAT_RATE, None, f">= {RATE_TARGET:g} a second", None, why),
+        Row(WHAT_STALL, None, f"<= {1e3 * STALL_TARGET:g} ms", None, why),
+        Row(WHAT_FINAL, None, f"<= {1e3 * STALL_TARGET:g} ms", None, why),
+    ]
+
+
+def run_window(models: Path, repeats: int) -> list[Row]:
+    """The window's rows: redraws a second while dragging the 346k armadillo and the
+    longest GUI-thread stalls; rows with ``met=None`` when there is no display or model."""
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        return _unmeasured("needs a display: run under xvfb-run")
+    path = Path(models) / ARMADILLO
+    if not path.is_file():
+        return _unmeasured(f"needs {path}")
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    try:
+        runs = _measure(path, max(1, repeats))
+    except ImportError as exc:  # the window needs PySide6 and pyvistaqt
+        return _unmeasured(f"the window's libraries are missing: {exc}")
+    rate = Timing(tuple(1.0 / max(r["rate"], 1e-9) for r in runs))
+    stall = Timing(tuple(r["stall"] for r in runs))
+    final = Timing(tuple(r["final"] for r in runs))
+    rates = ", ".join(f"{r['rate']:.1f}" for r in runs)
+    proxies = {r["proxy"] for r in runs}
+    converged = all(r["converged"] for r in runs)
+    note = (
+        f"{1 / rate.median:.1f} redraws/s (runs: {rates}); drawn: {', '.join(proxies)}; "
+        f"load average {load:.1f} on {os.cpu_count()} CPUs at the start"
+    )
+    rows = [
+        Row(WHAT_RATE, rate, f">= {RATE_TARGET:g} a second", 1 / rate.median >= RATE_TARGET, note),
+        Row(
+            WHAT_STALL,
+            stall,
+            f"<= {1e3 * STALL_TARGET:g} ms",
+            stall.median <= STALL_TARGET and converged,
+            ("" if converged else "a release solve did not converge; ") + _culprit(runs),
+        ),
+        Row(
+            WHAT_FINAL,
+            final,
+            f"<= {1e3 * STALL_TARGET:g} ms",
+            final.median <= STALL_TARGET,
+            "" if final.median <= STALL_TARGET else FINAL_WHY,
+        ),
+    ]
+    for r in rows:
+        print(f"  {r.what}: {r.ms()} ms; {r.target}; {r.verdict()}")
+    return rows
+
+
+def _culprit(runs) -> str:
+    worst = max(runs, key=lambda r: r["stall"])
+    return f"the longest gap came {worst['stall_phase']}"
+
+
+# -- the measurement --------------------------------------------------------------------------
+class _Meter:
+    """The largest gap between the ticks of a precise GUI-thread timer, per phase."""
+
+    def __init__(self) -> None:
+        from PySide6.QtCore import Qt, QTimer
+
+        self.timer = QTimer()
+        self.timer.setTimerType(Qt.TimerType.PreciseTimer)
+        self.timer.setInterval(TICK_MS)
+        self.timer.timeout.connect(self._tick)
+        self.phase = ""
+        self.worst: dict[str, float] = {}
+        self._last = time.perf_counter()
+
+    def start(self, phase: str) -> None:
+        self.phase = phase
+        self.worst.setdefault(phase, 0.0)
+        self._last = time.perf_counter()
+        if not self.timer.isActive():
+            self.timer.start()
+
+    def switch(self, phase: str) -> None:
+        """Later gaps count for ``phase`` (a gap spanning the switch counts for the old)."""
+        self.phase = phase
+        self.worst.setdefault(phase, 0.0)
+
+    def _tick(self) -> None:
+        now = time.perf_counter()
+        gap = now - self._last
+        self._last = now
+        if gap > self.worst.get(self.phase, 0.0):
+            self.worst[self.phase] = gap
+
+    def stop(self) -> None:
+        self._tick()
+        self.timer.stop()
+
+
+def run_until(pred, timeout: float, poll_ms: int = 5) -> bool:
+    """Run the Qt event loop until ``pred()`` is true (checked every ``poll_ms``) or
+    ``timeout`` seconds passed; True when ``pred()`` came true."""
+    from PySide6.QtCore import QEventLoop, QTimer
+
+    if pred():
+        return True
+    loop = QEventLoop()
+    check = QTimer()
+    check.setInterval(poll_ms)
+
+    def poll() -> None:
+        if pred():
+            loop.quit()
+
+    check.timeout.connect(poll)
+    check.start()
+    QTimer.singleShot(int(timeout * 1000), loop.quit)
+    loop.exec()
+    check.stop()
+    return bool(pred())
+
+
+def settled(win) -> bool:
+    """Nothing runs, no frame is pending and the full-resolution model is drawn."""
+    vp = win.viewport
+    full = getattr(vp, "showing_full", lambda: True)()
+    return not win.is_solving() and win.session._pending is None and full
+
+
+def drag_node(win) -> int:
+    """A free lattice node drawn well inside the view, clear of the others."""
+    vp = win.viewport
+    xy, _, visible = vp.projection().project(vp.nodes)
+    free = ~np.asarray(win.state.fixed, bool).reshape(len(xy), -1).all(axis=1)
+    best, score = -1, -1.0
+    for r in np.flatnonzero(visible & free):
+        margin = min(xy[r, 0], xy[r, 1], vp.width() - xy[r, 0], vp.height() - xy[r, 1])
+        if margin < 120:
+            continue
+        others = np.delete(xy, r, axis=0)
+        clear = float(np.hypot(*(others - xy[r]).T).min())
+        if clear > 12 and clear + 0.1 * margin > score:
+            best, score = int(r), clear + 0.1 * margin
+    if best < 0:
+        raise RuntimeError("no lattice node can be picked cleanly in the view")
+    return best
+
+
+def drag_path(start: np.ndarray, seconds: float = DRAG_SECONDS) -> list[np.ndarray]:
+    """Mouse positions every :data:`MOVE_MS`: out and sideways, about 120 pixels."""
+    steps = int(seconds * 1000 / MOVE_MS)
+    t = np.linspace(0, 1, steps + 1)[1:]
+    return [start + np.array([-110 * s, -50 * np.sin(np.pi * s)]) for s in t]
+
+
+def one_drag(app, win, row: int, meter: _Meter) -> dict:
+    """Press on ``row``, move along :func:`drag_path` by a timer, release, wait for the
+    drawn result. Returns the rate, the stalls and what was drawn."""
+    from PySide6.QtCore import QPoint, Qt, QTimer
+    from PySide6.QtTest import QTest
+
+    vp = win.viewport
+    start = vp.projection().project(vp.nodes)[0][row]
+    path = drag_path(start)
+    left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
+
+    def at(xy) -> QPoint:
+        return QPoint(int(round(xy[0])), int(round(xy[1])))
+
+    QTest.mousePress(vp, left, none, at(start))
+    moves = iter(path)
+    done = {"moves": False}
+    drawn: set[str] = set()
+
+    def move() -> None:  # each mouse event in its own turn of the event loop, as a user's
+        xy = next(moves, None)
+        if xy is None:
+            done["moves"] = True
+            return
+        QTest.mouseMove(vp, at(xy))
+
+    def frame(*_args) -> None:
+        drawn.add(getattr(vp, "drawn_model", lambda: "full mesh")())
+
+    mover = QTimer()
+    mover.setTimerType(Qt.TimerType.PreciseTimer)
+    mover.setInterval(MOVE_MS)
+    mover.timeout.connect(move)
+    win.session.frameReady.connect(frame)
+    meter.start("drag")
+    redraws0, t0 = win.redraws, time.perf_counter()
+    mover.start()
+    run_until(lambda: done["moves"], DRAG_SECONDS + 30)
+    mover.stop()
+    elapsed = time.perf_counter() - t0
+    redraws = win.redraws - redraws0
+    win.session.frameReady.disconnect(frame)
+    release = {"gen": None}
+
+    def solved(gen: int, _ok: bool) -> None:
+        if gen == release["gen"]:  # the result is accepted: what follows draws it
+            meter.switch("final")
+
+    def up() -> None:
+        QTest.mouseRelease(vp, left, none, at(path[-1]))
+        meter.switch("release")
+        release["gen"] = win.worker.generation
+
+    win.solveDone.connect(solved)
+    QTimer.singleShot(MOVE_MS, up)
+    run_until(lambda: release["gen"] is not None, 5)
+    gen = release["gen"]
+    ended = run_until(lambda: not win.is_solving(), 120)
+    run_until(lambda: settled(win), 30)
+    meter.stop()
+    win.solveDone.disconnect(solved)
+    phase = max(("drag", "release"), key=lambda p: meter.worst.get(p, 0.0))
+    return {
+        "rate": redraws / elapsed,
+        "stall": max(meter.worst.get("drag", 0.0), meter.worst.get("release", 0.0)),
+        "stall_phase": "while dragging" if phase == "drag" else "during the release solve",
+        "final": meter.worst.get("final", 0.0),
+        "converged": bool(ended and win.state.solved and win.state.converged),
+        "proxy": " and ".join(sorted(drawn)) or "nothing",
+        "generation": gen,
+    }
+
+
+def _measure(path: Path, repeats: int) -> list[dict]:
+    from PySide6.QtWidgets import QApplication
+
+    from isochor.app import style
+    from isochor.app.document import Document
+    from isochor.app.mainwindow import MainWindow
+
+    app = QApplication.instance() or QApplication([])
+    style.apply_dark_theme(app)
+    doc = Document.open(path)
+    prepare = getattr(doc.surface, "prepare", None)
+    if prepare is not None:  # what opening a file does in the background
+        prepare(doc.state.problem.options)
+    win = MainWindow(doc)
+    win.headless_errors = True
+    win.resize(1360, 860)
+    win.show()
+    try:
+        run_until(lambda: win.viewport.paints > 0 and settled(win), 120)
+        win.act_live.setChecked(True)
+        row = drag_node(win)
+        runs = []
+        for i in range(repeats + 1):  # the first is a warm-up
+            meter = _Meter()
+            run = one_drag(app, win, row, meter)
+            if i:
+                runs.append(run)
+            win.undo_stack.undo()
+            run_until(lambda: settled(win), 60)
+        return runs
+    finally:
+        win.undo_stack.setClean()
+        win.close()
+        win.shutdown()
