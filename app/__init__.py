@@ -9,8 +9,11 @@ isochor.core``.
 - :mod:`.mainwindow`  the window shell: docks, status bar, session signals to widgets
 - :mod:`.actions`     the actions, menus and toolbar
 - :mod:`.files`       open, save, export, the unsaved-changes prompt
+- :mod:`.loading`     big models opened in the background, with progress and Cancel;
+  :mod:`.reader` reads them and builds the pyramid in a child process
 - :mod:`.controller`  the editing session (a QObject, no widgets): document, undo stack,
-  solver worker, frame scheduling
+  solver worker; :mod:`.sessiondrag` its drags and live previews, :mod:`.framedraw` the
+  frame scheduling
 - :mod:`.document`    the editor model (Qt-free): edit rules, selection, drag session, files
 - :mod:`.goalrules`   the goal's edit rules (Qt-free): hold far side, centre of mass, each
   body, fold guard, pins on some axes, what the far-side anchor holds
@@ -19,7 +22,8 @@ isochor.core``.
 - :mod:`.worker`      the solve generator on a background thread; records reach the GUI by
   queued signals
 - :mod:`.viewport`    the 3D view: camera, overlays, mouse and key gestures
-- :mod:`.scene`       the view's actors, updated in place per frame
+- :mod:`.scene`       the view's actors, updated in place per frame; :mod:`.modelview` and
+  :mod:`.modeldraw` draw a proxy level while the model moves, the full mesh when it stops
 - :mod:`.picking`     projection and picking maths (numpy only)
 - :mod:`.panel`       the Inspector: selection, pins, solve options, lattice, display
 - :mod:`.goalbox`     the Inspector's Constraints group and the last solve's notes
