@@ -19,7 +19,7 @@ $(PY):
 # a wheel without network.
 $(VENV)/.installed: pyproject.toml isochor/__init__.py | $(PY)
 	$(PY) -m pip install --upgrade pip 'setuptools>=68' wheel
-	$(PY) -m pip install -e '.[test,bench]'
+	$(PY) -m pip install -e '.[test,bench,fast]'
 	touch $@
 
 run: sysdeps venv

@@ -20,6 +20,7 @@ from math import comb
 
 import numpy as np
 
+from . import kernels
 from .errors import IsochorError
 
 MIN_NODES, MAX_NODES = 2, 10
@@ -81,9 +82,16 @@ class PointBasis:
     z, the layout :class:`core.volume.VolumeOperator` works in; :meth:`apply_transpose`
     reads such a gradient without copying. The factored products run over blocks of
     ``BASIS_BLOCK`` points so that their temporaries stay in the CPU cache.
+
+    With the points' lattice coordinates ``uvw`` (what :meth:`Lattice.basis` passes) both
+    products run in :mod:`core.kernels` once its compiled kernels are ready: they evaluate
+    the Bernstein polynomials per point instead of reading the stored basis (same numbers
+    to rounding); until then, or without numba, the NumPy code below.
     """
 
-    def __init__(self, bu: np.ndarray, bv: np.ndarray, bw: np.ndarray) -> None:
+    def __init__(
+        self, bu: np.ndarray, bv: np.ndarray, bw: np.ndarray, uvw: np.ndarray | None = None
+    ) -> None:
         p, l = bu.shape
         m, n = bv.shape[1], bw.shape[1]
         self.shape = (l, m, n)
@@ -93,6 +101,8 @@ class PointBasis:
         self._dense_t: np.ndarray | None = None
         self.dense: np.ndarray | None = None
         self.buv = self.bw = self._buv_t = self._bw_t = None
+        #: (3, p) lattice coordinates for the compiled kernels, or None
+        self.uvw = None if uvw is None else np.ascontiguousarray(np.asarray(uvw, float).T)
         size = p * l * m * n
         if size <= DENSE_LIMIT:
             self._dense_t = (buv_t[:, None, :] * bw_t[None, :, :]).reshape(l * m * n, p)
@@ -104,7 +114,7 @@ class PointBasis:
     @property
     def nbytes(self) -> int:
         """Memory held by the basis, in bytes."""
-        held = [self._dense_t, self._buv_t, self._bw_t]
+        held = [self._dense_t, self._buv_t, self._bw_t, self.uvw]
         return int(sum(a.nbytes for a in held if a is not None))
 
     def apply(self, nodes: np.ndarray) -> np.ndarray:
@@ -112,6 +122,10 @@ class PointBasis:
 
         The result is a Fortran-ordered view of a ``(3, p)`` array (see the class notes)."""
         nodes = np.asarray(nodes, dtype=np.float64)
+        if self.uvw is not None:
+            out = kernels.apply(self.uvw, nodes, self.shape)
+            if out is not None:
+                return out.T
         if self._buv_t is None:
             return (nodes.T @ self._dense_t).T
         l, m, n = self.shape
@@ -132,6 +146,10 @@ class PointBasis:
     def apply_transpose(self, point_values: np.ndarray) -> np.ndarray:
         """Chain rule (paper Eq 11): per-point ``(p, 3)`` -> per-node ``(l*m*n, 3)``."""
         v = np.asarray(point_values, dtype=np.float64).T  # (3, p), contiguous if Fortran
+        if self.uvw is not None:
+            out = kernels.apply_transpose(self.uvw, v, self.shape)
+            if out is not None:
+                return out
         if self._buv_t is None:
             return np.ascontiguousarray((v @ self._dense_t.T).T)
         l, m, n = self.shape
@@ -252,7 +270,10 @@ class Lattice:
         uvw = self.to_parameters(points)
         l, m, n = self.shape
         return PointBasis(
-            bernstein(l - 1, uvw[:, 0]), bernstein(m - 1, uvw[:, 1]), bernstein(n - 1, uvw[:, 2])
+            bernstein(l - 1, uvw[:, 0]),
+            bernstein(m - 1, uvw[:, 1]),
+            bernstein(n - 1, uvw[:, 2]),
+            uvw,
         )
 
     def deform(self, points: np.ndarray, nodes: np.ndarray) -> np.ndarray:

@@ -108,3 +108,13 @@ def test_jacobian_matches_central_differences_in_a_skewed_frame(shape, monkeypat
     np.testing.assert_allclose(
         lat.jacobian(points, lat.rest_nodes @ a.T), np.tile(a, (50, 1, 1)), atol=1e-12
     )
+
+
+def test_a_basis_keeps_the_lattice_coordinates_of_its_points():
+    """The compiled kernels (core/kernels.py) evaluate the basis from them."""
+    rng = np.random.default_rng(5)
+    lat = Lattice((3, 4, 2), (0.5, -1.0, 2.0), [[2.0, 0.3, 0.0], [0.1, 1.5, 0.2], [0, -0.4, 1]])
+    pts = lat.origin + rng.uniform(size=(40, 3)) @ lat.axes
+    basis = lat.basis(pts)
+    assert basis.uvw.shape == (3, 40) and basis.uvw.flags.c_contiguous
+    np.testing.assert_allclose(basis.uvw.T, lat.to_parameters(pts), atol=1e-14)

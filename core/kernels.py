@@ -1,0 +1,354 @@
+"""Optional compiled kernels for the evaluation's hot loops (numba), with the NumPy path as
+the fallback.
+
+What they compute (the same numbers as the NumPy path, to rounding; ``tests/test_kernels``):
+
+- :func:`apply` and :func:`apply_transpose`: :meth:`core.lattice.PointBasis.apply` and its
+  transpose, evaluating the Bernstein basis per point from its lattice coordinates
+  (:mod:`core._jitbasis`);
+- :func:`fans`, :func:`volume_gradient`, :func:`face_volume`: the volume and its gradient
+  of :class:`core.volume.VolumeOperator`, vertex by vertex (:mod:`core._jitvolume`).
+
+Each returns None when the compiled kernels are not there (yet); the caller then runs its
+NumPy code. The kernels are there once numba is installed (the ``fast`` extra), imports,
+and has compiled them. Compiling takes seconds, so it never happens in the caller: the
+first evaluation of at least ``START_SIZE`` points or faces starts a background thread that
+imports numba and loads the kernels from numba's on-disk cache (:mod:`core._jitbase`; a
+fraction of a second), and the evaluations use NumPy until it is done. On the first run
+(an empty cache) that thread first has a child interpreter compile them into the cache
+(seconds; in this process compiling would hold the GIL for long stretches and slow the
+NumPy evaluations meanwhile); a child that outlives a short program still fills the cache.
+Whatever goes wrong (numba missing, an import or compile error, a failed self-check)
+leaves the NumPy path in place; :func:`status` says why. A compiled
+call that raises switches the kernels off the same way. ``ISOCHOR_NO_JIT=1`` (any value but
+empty or 0) switches them off from the start; :func:`ready` waits for them (tests).
+
+Large inputs are cut into fixed ranges (``CHUNK`` points, vertices or faces), run on up to
+``ISOCHOR_JIT_THREADS`` threads (default: the usable cores, at most 4; the kernels release
+the GIL) and combined in range order, so results do not depend on the thread count.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import threading
+from types import SimpleNamespace
+
+import numpy as np
+
+from . import _jitthreads
+
+ENV_OFF = "ISOCHOR_NO_JIT"
+#: evaluations at least this large (points, vertices or faces) start the compilation
+START_SIZE = 4096
+#: points, vertices or faces per range of work (a multiple of the kernels' block)
+CHUNK = 1 << 14
+_FACE_CHUNK = 1 << 15
+
+#: threads per call (:mod:`core._jitthreads`)
+set_threads = _jitthreads.set_threads
+
+_log = logging.getLogger(__name__)
+_lock = threading.Lock()
+_state = SimpleNamespace(status="idle", reason="", kernels=None, thread=None, mode="auto")
+
+
+def _off_by_env() -> bool:
+    return os.environ.get(ENV_OFF, "").strip() not in ("", "0")
+
+
+def status() -> str:
+    """``ready``, ``loading``, ``idle`` (nothing started yet), ``off: <why>`` or
+    ``failed: <why>``."""
+    if _off_by_env():
+        return f"off: {ENV_OFF} is set"
+    if _state.mode == "numpy":
+        return "off: the NumPy path is forced"
+    if _state.status in ("failed", "off"):
+        return f"{_state.status}: {_state.reason}"
+    return _state.status
+
+
+def set_mode(mode: str) -> str:
+    """``"numpy"``: every evaluation takes the NumPy path; ``"auto"``: the compiled one when
+    it is ready. Returns the previous mode (tests and benchmarks compare the two)."""
+    if mode not in ("auto", "numpy"):
+        raise ValueError(f"mode must be 'auto' or 'numpy', not {mode!r}")
+    previous, _state.mode = _state.mode, mode
+    return previous
+
+
+def start() -> None:
+    """Start loading the kernels in a background thread, unless started or switched off."""
+    if _off_by_env() or _state.status != "idle":
+        return
+    with _lock:
+        if _state.status != "idle":
+            return
+        _state.status = "loading"
+        thread = threading.Thread(target=_load, name="isochor-jit", daemon=True)
+        _state.thread = thread
+    thread.start()
+
+
+def ready(timeout: float | None = None) -> bool:
+    """Start loading and wait up to ``timeout`` seconds (None: until done); whether the
+    compiled kernels are in use."""
+    start()
+    thread = _state.thread
+    if thread is not None and _state.status == "loading":
+        thread.join(timeout)
+    return _kernels() is not None
+
+
+def active(size: int = 0) -> bool:
+    """Whether the compiled kernels are in use; starts loading them for a large input."""
+    return _kernels(size) is not None
+
+
+def _kernels(size: int = 0) -> SimpleNamespace | None:
+    """The compiled kernels if they are to be used; starts loading them for a large input."""
+    k = _state.kernels
+    if k is not None:
+        return k if _state.mode == "auto" else None
+    if size >= START_SIZE and _state.status == "idle":
+        start()
+    return None
+
+
+def _fail(why: str) -> None:
+    with _lock:
+        _state.kernels = None
+        _state.status, _state.reason = "failed", why
+    _log.info("isochor: compiled kernels off, NumPy path in use (%s)", why)
+
+
+def _compile() -> SimpleNamespace:
+    """Compile the kernels for their argument types (or load them from numba's cache)."""
+    from . import _jitbasis, _jitvolume
+    from ._jitbase import numba
+
+    t = numba.types
+    f8, i8, i4 = t.float64, t.int64, t.int32
+
+    def array(dtype, dims, readonly=True):  # read-only types also take writable arrays
+        return t.Array(dtype, dims, "C", readonly=readonly)
+
+    w1, w2 = array(f8, 1, False), array(f8, 2, False)
+    r2, r3 = array(f8, 2), array(f8, 3)
+    l1, l2, s1 = array(i8, 1), array(i8, 2), array(i4, 1)
+    signatures = [
+        (_jitbasis.apply_range, t.void(r2, r3, w2, i8, i8)),
+        (_jitbasis.transpose_range, t.void(r2, r2, i8, i8, i8, i8, i8, w1)),
+        (_jitvolume.build_fans, t.Tuple((array(i8, 1, False), array(i4, 1, False)))(l2, i8)),
+        (_jitvolume.fan_gradient_range, f8(r2, f8, f8, f8, l1, s1, w2, i8, i8)),
+        (_jitvolume.face_volume_range, f8(r2, f8, f8, f8, l1, l1, l1, i8, i8)),
+    ]
+    for fn, sig in signatures:
+        fn.compile(sig)
+        fn.disable_compile()  # a call with other types raises instead of compiling
+    return SimpleNamespace(**{fn.__name__: fn for fn, _ in signatures})
+
+
+def _compile_in_child(marker) -> None:
+    """Fill numba's cache from a child interpreter: compiling holds the GIL for much of
+    its seconds, which here would slow the caller's NumPy work (every GIL hand-over
+    waits up to the switch interval). Where the child cannot run, this thread compiles;
+    a child killed by a signal (a crash in the compiler) switches the kernels off."""
+    import subprocess
+
+    cmd = [sys.executable, "-m", __name__, "--compile"]
+    env = dict(os.environ, **{ENV_OFF: ""})
+    try:
+        done = subprocess.run(cmd, capture_output=True, timeout=900, env=env, check=False)
+    except subprocess.TimeoutExpired as exc:
+        raise RuntimeError("compiling took more than 15 minutes") from exc
+    except OSError:
+        return
+    if done.returncode < 0:
+        raise RuntimeError(f"the compiler crashed (signal {-done.returncode}) in a child process")
+    if done.returncode == 0:
+        try:
+            marker.parent.mkdir(parents=True, exist_ok=True)
+            marker.touch()
+        except OSError:
+            pass
+
+
+def _load() -> None:
+    """The background thread: import numba, compile (or load from the cache), check."""
+    try:
+        from . import _jitbase
+
+        if not _jitbase.AVAILABLE:
+            with _lock:
+                _state.status, _state.reason = "off", _jitbase.ERROR
+            return
+        if _jitbase.CACHE:
+            version = f"{_jitbase.numba.__version__}-py{sys.version_info[0]}{sys.version_info[1]}"
+            marker = _jitbase.cache_dir() / f"compiled-{version}"
+            if not marker.exists():
+                _compile_in_child(marker)
+        k = _compile()
+        why = _self_check(k)
+        if why:
+            _fail(f"self-check: {why}")
+            return
+        with _lock:
+            _state.kernels, _state.status = k, "ready"
+    except Exception as exc:  # never let the optional path break the program
+        _fail(f"{type(exc).__name__}: {exc}")
+
+
+def _self_check(k: SimpleNamespace) -> str:
+    """Compare the kernels with NumPy on a tiny case; '' when they agree."""
+    from math import comb
+
+    rng = np.random.default_rng(7)
+    shape = (3, 4, 2)
+    uvw = rng.uniform(size=(3, 50))
+    nodes = rng.normal(size=(24, 3))
+    bases = [
+        np.array([comb(d - 1, i) * u**i * (1 - u) ** (d - 1 - i) for i in range(d)])
+        for d, u in zip(shape, uvw)
+    ]
+    dense = np.einsum("ip,jp,kp->ijkp", *bases).reshape(24, 50)
+    got = apply(uvw, nodes, shape, k)
+    g = rng.normal(size=(3, 50))
+    back = apply_transpose(uvw, g, shape, k)
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int64)
+    pts = rng.normal(size=(4, 3))
+    a, b, c = pts[faces[:, 0]], pts[faces[:, 1]], pts[faces[:, 2]]
+    exact = float(np.einsum("ij,ij->", a, np.cross(b, c))) / 6.0
+    corner = np.zeros((4, 3))  # dV/dP, corner by corner
+    np.add.at(corner, faces[:, 0], np.cross(b, c) / 6.0)
+    np.add.at(corner, faces[:, 1], np.cross(c, a) / 6.0)
+    np.add.at(corner, faces[:, 2], np.cross(a, b) / 6.0)
+    vol, grad = volume_gradient(fans(faces, 4, k), np.ascontiguousarray(pts.T), None, k)
+    checks = {
+        "apply": np.allclose(got, nodes.T @ dense, rtol=1e-12, atol=1e-12),
+        "transpose": np.allclose(back, dense @ g.T, rtol=1e-12, atol=1e-12),
+        "volume": abs(vol - exact) <= 1e-12 and np.allclose(grad.T, corner, atol=1e-12),
+        "face volume": abs(face_volume(faces.T.copy(), pts.T.copy(), None, k) - exact) < 1e-12,
+    }
+    return ", ".join(name for name, ok in checks.items() if not ok)
+
+
+def _reset_after_fork() -> None:
+    if _state.status == "loading":  # the loading thread did not survive the fork
+        _state.status, _state.thread = "idle", None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_reset_after_fork)
+
+
+def _chunks(size: int, chunk: int = CHUNK) -> list[tuple[int, int]]:
+    return [(s, min(s + chunk, size)) for s in range(0, size, chunk)] or [(0, 0)]
+
+
+def _guard(fn):
+    """Run a compiled call; on any error switch the kernels off and return None."""
+
+    def wrapped(*args):
+        try:
+            return fn(*args)
+        except Exception as exc:
+            _fail(f"{fn.__name__}: {type(exc).__name__}: {exc}")
+            return None
+
+    wrapped.__name__ = wrapped.__qualname__ = fn.__name__
+    wrapped.__doc__ = fn.__doc__
+    return wrapped
+
+
+# --- the entry points ------------------------------------------------------------------------
+
+
+@_guard
+def apply(uvw: np.ndarray, nodes: np.ndarray, shape, k=None) -> np.ndarray | None:
+    """(3, p) points for the (3, p) lattice coordinates and (l m n, 3) nodes; None: no
+    kernels."""
+    k = k or _kernels(uvw.shape[1])
+    if k is None:
+        return None
+    l, m, n = shape
+    if nodes.shape != (l * m * n, 3):
+        return None  # the NumPy path says what is wrong
+    x = np.ascontiguousarray(nodes, dtype=np.float64).reshape(l, m, 3 * n)
+    out = np.empty(uvw.shape)
+    ranges = _chunks(uvw.shape[1])
+    _jitthreads.run(lambda i: k.apply_range(uvw, x, out, *ranges[i]), len(ranges))
+    return out
+
+
+@_guard
+def apply_transpose(uvw: np.ndarray, rows: np.ndarray, shape, k=None) -> np.ndarray | None:
+    """(l m n, 3) node values for (3, p) per-point rows; None: no kernels."""
+    k = k or _kernels(uvw.shape[1])
+    if k is None:
+        return None
+    l, m, n = shape
+    if rows.shape != uvw.shape:
+        return None
+    g = np.ascontiguousarray(rows, dtype=np.float64)
+    ranges = _chunks(uvw.shape[1])
+    acc = np.zeros((len(ranges), l * m * n * 3))
+    _jitthreads.run(lambda i: k.transpose_range(uvw, g, l, m, n, *ranges[i], acc[i]), len(ranges))
+    return acc.sum(axis=0).reshape(l * m * n, 3) if len(ranges) > 1 else acc[0].reshape(-1, 3)
+
+
+@_guard
+def fans(faces: np.ndarray, n_vertices: int, k=None):
+    """The vertex fans (ptr, seq) of :mod:`core._jitvolume` for a face list; None: no
+    kernels (or a mesh too large for int32 indices)."""
+    k = k or _kernels(len(faces))
+    if k is None or max(int(n_vertices), 3 * len(faces)) >= 2**31 - 1:
+        return None
+    return k.build_fans(np.ascontiguousarray(faces, dtype=np.int64), int(n_vertices))
+
+
+@_guard
+def volume_gradient(fan, rows: np.ndarray, center, k=None):
+    """(volume, (3, m) gradient) for (3, m) C-ordered vertex rows; None: no kernels."""
+    k = k or _kernels(rows.shape[1])
+    if k is None or fan is None:
+        return None
+    ptr, seq = fan
+    if rows.shape != (3, len(ptr) - 1):
+        return None
+    c = np.zeros(3) if center is None else np.asarray(center, dtype=np.float64).reshape(3)
+    grad = np.empty(rows.shape)
+    ranges = _chunks(rows.shape[1])
+    part = np.zeros(len(ranges))
+
+    def task(i):
+        part[i] = k.fan_gradient_range(rows, c[0], c[1], c[2], ptr, seq, grad, *ranges[i])
+
+    _jitthreads.run(task, len(ranges))
+    return float(part.sum()) / 3.0, grad
+
+
+@_guard
+def face_volume(corners: np.ndarray, rows: np.ndarray, center, k=None) -> float | None:
+    """The signed volume of the faces (3, f) (int64 rows, every index checked to lie in
+    0..m by the caller) of (3, m) vertex rows; None: no kernels."""
+    k = k or _kernels(corners.shape[1])
+    if k is None:
+        return None
+    c = np.zeros(3) if center is None else np.asarray(center, dtype=np.float64).reshape(3)
+    f0, f1, f2 = corners
+    ranges = _chunks(corners.shape[1], _FACE_CHUNK)
+    part = np.zeros(len(ranges))
+
+    def task(i):
+        part[i] = k.face_volume_range(rows, c[0], c[1], c[2], f0, f1, f2, *ranges[i])
+
+    _jitthreads.run(task, len(ranges))
+    return float(part.sum()) / 6.0
+
+
+if __name__ == "__main__" and sys.argv[1:] == ["--compile"]:  # see _compile_in_child
+    _compile()

@@ -1,0 +1,292 @@
+"""The optional compiled kernels (core/kernels.py): the same numbers as the NumPy path, the
+NumPy path wherever they are missing, off or broken, and never a wait for the compiler.
+
+The tests of the compiled path wait for it (``kernels.ready``) and are skipped without
+numba or with ``ISOCHOR_NO_JIT`` set; the fallback tests always run.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from contextlib import contextmanager
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from isochor.core import kernels
+from isochor.core import lattice as lat_mod
+from isochor.core.examples import example_scenario
+from isochor.core.generators import run_to_end
+from isochor.core.lattice import Lattice
+from isochor.core.multilevel import EmbeddedSurface, solve
+from isochor.core.problem import build
+from isochor.core.shapes import sphere_levels, torus, torus_levels
+from isochor.core.volume import VolumeOperator, signed_volume
+from tests.numdiff import central_gradient, check_vertex_gradient
+
+
+@pytest.fixture(scope="module")
+def compiled():
+    pytest.importorskip("numba")
+    if os.environ.get(kernels.ENV_OFF, "").strip() not in ("", "0"):
+        pytest.skip(f"{kernels.ENV_OFF} is set")
+    assert kernels.ready(timeout=600), kernels.status()
+
+
+@contextmanager
+def numpy_path():
+    previous = kernels.set_mode("numpy")
+    try:
+        yield
+    finally:
+        kernels.set_mode(previous)
+
+
+def close(a, b, rel=1e-12):
+    """a equals b to ``rel`` of b's largest entry."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return np.abs(a - b).max() <= rel * max(np.abs(b).max(), 1e-300)
+
+
+def skewed_lattice(shape):
+    axes = [[2.0, 0.3, 0.0], [0.1, 1.5, 0.2], [0.0, -0.4, 1.0]]
+    return Lattice(shape, (0.5, -1.0, 2.0), axes)
+
+
+@pytest.mark.parametrize(
+    "shape", [(2, 2, 2), (3, 3, 3), (3, 4, 5), (5, 5, 5), (8, 8, 8), (10, 2, 7), (4, 9, 3)]
+)
+def test_basis_matches_the_dense_and_factored_numpy_forms(compiled, shape, monkeypatch):
+    rng = np.random.default_rng(sum(shape))
+    lat = skewed_lattice(shape)
+    p = 3000
+    uvw = np.concatenate([rng.uniform(size=(p - 100, 3)), rng.uniform(-0.2, 1.2, (100, 3))])
+    points = lat.origin + uvw @ lat.axes  # inside the lattice, a few outside
+    nodes = lat.rest_nodes + rng.normal(scale=0.3, size=(lat.n_nodes, 3))
+    g = rng.normal(size=(p, 3))
+    default = lat.basis(points)
+    monkeypatch.setattr(lat_mod, "DENSE_LIMIT", 0)
+    factored = lat.basis(points)
+    assert default.dense is not None and factored.dense is None
+    fast_p, fast_g = default.apply(nodes), default.apply_transpose(g)
+    assert fast_p.shape == (p, 3) and fast_p.flags.f_contiguous and fast_g.shape == nodes.shape
+    with numpy_path():
+        for basis in (default, factored):
+            assert close(fast_p, basis.apply(nodes))
+            assert close(fast_g, basis.apply_transpose(g))
+            assert close(fast_g, basis.apply_transpose(np.ascontiguousarray(g)))
+
+
+def _meshes():
+    """Closed, open, badly wound, non-manifold, a vertex of high degree, a triangle soup."""
+    rng = np.random.default_rng(11)
+    sphere = sphere_levels(4)[-1]
+    v = sphere.vertices + rng.normal(scale=0.02, size=sphere.vertices.shape)
+    f = sphere.faces
+    flipped = f.copy()
+    flip = rng.random(len(f)) < 0.2
+    flipped[flip] = flipped[flip][:, ::-1]
+    ring = 60  # a disk: vertex 0 has 60 faces around it
+    t = np.linspace(0, 2 * np.pi, ring, endpoint=False)
+    disk_v = np.concatenate([[[0, 0, 0.3]], np.stack([np.cos(t), np.sin(t), 0 * t], 1)])
+    disk_f = np.array([[0, 1 + i, 1 + (i + 1) % ring] for i in range(ring)])
+    soup_v = rng.normal(size=(300, 3))
+    soup_f = rng.integers(0, 280, size=(900, 3))  # degenerate faces; vertices 280.. unused
+    soup_f[:20, 1] = soup_f[:20, 0]
+    return {
+        "closed": (v, f),
+        "far away": (v + 1e3, f),
+        "open": (v, f[rng.random(len(f)) > 0.1]),
+        "badly wound": (v, flipped),
+        "non-manifold": (v, np.concatenate([f, f[:50], f[:30, ::-1]])),
+        "high degree": (disk_v, disk_f),
+        "soup": (soup_v, soup_f),
+    }
+
+
+@pytest.mark.parametrize("name", list(_meshes()))
+def test_volume_and_gradient_match_numpy_on_any_triangle_set(compiled, name):
+    v, f = _meshes()[name]
+    op = VolumeOperator(f, len(v))
+    center = v.mean(axis=0) + 0.01
+    value, grad = op.value_and_gradient(v, center)
+    alone, whole = op(v, center), signed_volume(v, f)
+    assert grad.shape == v.shape and grad.flags.f_contiguous
+    with numpy_path():
+        value0, grad0 = op.value_and_gradient(v, center)
+        alone0, whole0 = op(v, center), signed_volume(v, f)
+    scale = max(abs(value0), 1e-3 * np.abs(v - center).max() ** 3)
+    assert abs(value - value0) <= 1e-12 * scale
+    assert abs(alone - alone0) <= 1e-12 * scale and abs(whole - whole0) <= 1e-12 * scale
+    assert close(grad, grad0)
+    # the gradient is exact: the corner formula, face by face
+    a, b, c = (v[f[:, i]] - center for i in range(3))
+    corner = np.zeros_like(v)
+    for i, w in enumerate((np.cross(b, c), np.cross(c, a), np.cross(a, b))):
+        np.add.at(corner, f[:, i], w / 6.0)
+    assert close(grad, corner, 1e-11)
+
+
+def test_compiled_gradients_match_central_differences(compiled):
+    rng = np.random.default_rng(4)
+    mesh = sphere_levels(3)[-1]
+    verts = mesh.vertices + rng.normal(scale=0.05, size=mesh.vertices.shape)
+    op = VolumeOperator(mesh.faces, len(verts))
+    _, grad = op.value_and_gradient(verts)
+    check_vertex_gradient(op, verts, grad, rng)
+    levels = torus_levels(4)
+    lat = Lattice.around(levels[-1].vertices, (4, 3, 5))
+    surface = EmbeddedSurface(lat, levels)
+    nodes = lat.rest_nodes + rng.normal(scale=0.05, size=(lat.n_nodes, 3))
+    _, node_grad = surface.level(-1).volume_and_gradient(nodes)
+    num = central_gradient(surface.volume, nodes)
+    assert np.max(np.abs(num - node_grad)) <= 1e-6 * np.max(np.abs(node_grad))
+
+
+def test_results_do_not_depend_on_the_thread_count(compiled):
+    mesh = torus(256, 160)  # more points and faces than two ranges of work
+    assert mesh.n_vertices > 2 * kernels.CHUNK
+    lat = skewed_lattice((4, 3, 5))
+    basis = lat.basis(mesh.vertices)
+    op = VolumeOperator(mesh.faces, mesh.n_vertices)
+    nodes = lat.rest_nodes + np.random.default_rng(2).normal(scale=0.1, size=(lat.n_nodes, 3))
+    runs = []
+    for n in (1, 3):
+        previous = kernels.set_threads(n)
+        try:
+            pts = basis.apply(nodes)
+            v, g = op.value_and_gradient(pts, mesh.center)
+            runs.append((pts, v, g, basis.apply_transpose(g), op(pts, mesh.center)))
+        finally:
+            kernels.set_threads(previous)
+    for a, b in zip(*runs):
+        assert np.array_equal(a, b)
+
+
+def test_a_solve_ends_at_the_same_nodes_either_way(compiled):
+    problem = build(example_scenario("torus-compression"))
+    results = []
+    for mode in ("numpy", "auto"):
+        previous = kernels.set_mode(mode)
+        try:
+            results.append(
+                run_to_end(
+                    solve(problem.surface, problem.nodes, problem.fixed, options=problem.options)
+                )
+            )
+        finally:
+            kernels.set_mode(previous)
+    size = problem.surface.lattice.size
+    assert np.abs(results[0].nodes - results[1].nodes).max() <= 1e-9 * size
+
+
+def test_a_failing_compiled_call_falls_back_to_numpy(compiled, monkeypatch):
+    def broken(*args):
+        raise RuntimeError("boom")
+
+    fake = SimpleNamespace(
+        apply_range=broken,
+        transpose_range=broken,
+        build_fans=broken,
+        fan_gradient_range=broken,
+        face_volume_range=broken,
+    )
+    mesh = sphere_levels(3)[-1]
+    lat = Lattice.around(mesh.vertices, (3, 3, 3))
+    basis = lat.basis(mesh.vertices)
+    for name, value in (("kernels", fake), ("status", "ready"), ("reason", "")):
+        monkeypatch.setattr(kernels._state, name, value)
+    pts = basis.apply(lat.rest_nodes)
+    assert kernels.status() == "failed: apply: RuntimeError: boom"
+    assert close(pts, mesh.vertices, 1e-12)  # the NumPy path's answer
+    assert kernels.ready(0) is False
+
+
+def _child(code: str, **env) -> str:
+    """Run code in a fresh interpreter (the installed package), return its stdout."""
+    full = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    full.pop(kernels.ENV_OFF, None)
+    full.update(env)
+    proc = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=full,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr, proc.stderr
+    return proc.stdout
+
+
+EVALUATE = textwrap.dedent("""
+    from isochor.core import kernels
+    from isochor.core.lattice import Lattice
+    from isochor.core.shapes import torus
+    from isochor.core.volume import VolumeOperator
+    mesh = torus(64, 48)
+    lat = Lattice.around(mesh.vertices, (3, 3, 3))
+    basis = lat.basis(mesh.vertices)
+    op = VolumeOperator(mesh.faces, mesh.n_vertices)
+    def evaluate():
+        v, g = op.value_and_gradient(basis.apply(lat.rest_nodes), mesh.center)
+        return v, basis.apply_transpose(g)
+""")
+
+
+def test_without_numba_the_numpy_path_runs():
+    out = _child(
+        "import sys\nsys.modules['numba'] = None  # import numba fails\n"
+        + EVALUATE
+        + "v, g = evaluate()\n"
+        "print(kernels.ready(60), kernels.status(), repr(v))\n"
+    )
+    assert out.startswith("False off: numba does not import"), out
+    mesh = torus(64, 48)
+    assert float(out.split()[-1]) == pytest.approx(signed_volume(mesh.vertices, mesh.faces))
+
+
+def test_the_environment_variable_switches_the_kernels_off():
+    out = _child(
+        EVALUATE + "evaluate()\nimport sys\n"
+        "print(kernels.ready(60), kernels.status(), 'numba' in sys.modules)\n",
+        ISOCHOR_NO_JIT="1",
+    )
+    assert out.split() == ["False", "off:", "ISOCHOR_NO_JIT", "is", "set", "False"], out
+
+
+def test_the_first_evaluation_does_not_wait_for_the_compiler():
+    """A slow compiler (here: a stand-in that sleeps) never delays an evaluation: they take
+    the NumPy path until it is done, then the compiled one."""
+    out = _child(
+        textwrap.dedent("""
+        import time
+        from isochor.core import kernels
+        def slow_load():
+            time.sleep(3)
+            kernels._state.kernels = 'stand-in'
+        kernels._load = slow_load
+        """)
+        + EVALUATE
+        + textwrap.dedent("""
+        t = time.perf_counter()
+        evaluate()
+        took = time.perf_counter() - t
+        print(kernels.status(), took < 2.5, kernels.ready(30), kernels._state.kernels)
+        """)
+    )
+    assert out.split() == ["loading", "True", "True", "stand-in"], out
+
+
+def test_numba_caches_in_a_user_folder(tmp_path):
+    pytest.importorskip("numba")
+    code = "import os\nfrom isochor.core import _jitbase\nprint(os.environ['NUMBA_CACHE_DIR'])"
+    env = {"XDG_CACHE_HOME": str(tmp_path), "NUMBA_CACHE_DIR": ""}
+    folder = _child(code, **env).strip()
+    assert folder.startswith(str(tmp_path / "isochor" / "numba")), folder
+    assert _child(code, NUMBA_CACHE_DIR=str(tmp_path / "mine")).strip() == str(tmp_path / "mine")
