@@ -8,6 +8,8 @@ import time
 
 import numpy as np
 
+from . import handletools
+
 
 class FramesMixin:
     """Needs the window's ``session``, ``doc``, ``state``, ``viewport``, ``readout``,
@@ -41,7 +43,8 @@ class FramesMixin:
             self.plot.update()
         self.plot.refresh()
         self._show_selection()  # (the scene moved the selection markers with the nodes)
-        self.viewport.repaint()  # the render, now: part of the frame's cost
+        handletools.redraw(self, render=False)  # the handle markers follow the model
+        self.viewport.repaint()  # the one render of the frame, now: part of its cost
         self.session.frame_cost = time.perf_counter() - t0
 
     def _solve_started(self) -> None:

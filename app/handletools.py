@@ -42,7 +42,6 @@ def connect(win) -> None:
     vp.handlePlaced.connect(lambda face, w: place(win, face, w))
     vp.handleDragStarted.connect(lambda i, face, w: _drag_started(win, i, face, w))
     vp.handleMenuRequested.connect(lambda i, pos: win.exec_menu(handle_menu(win, i), pos))
-    s.frameReady.connect(lambda *_: redraw(win))  # the nodes as drawn (a timeline frame)
     s.selectionChanged.connect(lambda: show(win))
     s.solveDone.connect(lambda *_: report(win))
     bind(win.act_handle_tool, box.tool_box)
@@ -100,8 +99,9 @@ def set_symmetry(win, value: str) -> None:
 
 
 # -- drawing ------------------------------------------------------------------------------------
-def redraw(win, nodes: np.ndarray | None = None) -> None:
-    """The handle markers for the nodes on screen (during a handle drag, its targets)."""
+def redraw(win, nodes: np.ndarray | None = None, render: bool = True) -> None:
+    """The handle markers for the nodes on screen (during a handle drag, its targets);
+    ``render=False`` leaves the render to the caller (a frame renders once, after this)."""
     doc, vp = win.doc, win.viewport
     drag = doc.drag
     handles = drag.handles if isinstance(drag, HandleDrag) else doc.state.handles
@@ -114,7 +114,8 @@ def redraw(win, nodes: np.ndarray | None = None) -> None:
     points = doc.handle_points(nodes, every) if every else np.zeros((0, 3))
     selected = drag.index if isinstance(drag, HandleDrag) else doc.handle
     vp.handles.show(targets, points, len(handles), selected)
-    vp.update()
+    if render:
+        vp.update()
 
 
 def show(win) -> None:

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from benchmarks import drag_cases as dc
 from benchmarks.scale import ARMADILLO, SCALE_TORI, scale_row
-from benchmarks.timing import Timing
+from benchmarks.timing import Timing, compiled, kernel_status, numpy_path
 from isochor.core.examples import example_scenario
 from isochor.core.problem import build, load_model
 from isochor.core.shapes import torus
@@ -68,6 +68,10 @@ def _drag_rows(what: str, problem, repeats: int) -> list[Row]:
         why = f"solved on {where}; without the preconditioner {plain.frames.ms()} ms"
     elif not why:
         why = f"solved on {where}: slower than the target"
+    if compiled():
+        with numpy_path():
+            slow = dc.drag(problem, max(1, repeats // 2))
+        why += f"; NumPy path {slow.frames.ms()} ms"
     rel_why = f"without the preconditioner {plain.release.ms()} ms"
     if not d.release_ok:
         rel_why = "a release solve did not converge"
@@ -132,7 +136,12 @@ def run_display(models: Path, repeats: int) -> tuple[list[Row], list[str]]:
         row = scale_row(mesh, shape, repeats, reference=False)
         ms = row.t_eval.median * 1e3
         what = f"volume + gradient, {mesh.n_faces} triangles, {row.nodes} nodes"
-        rows.append(Row(what, row.t_eval, f"<= {target:g} ms", ms <= target))
+        why = ""
+        if compiled():
+            with numpy_path():
+                slow = scale_row(mesh, shape, repeats, reference=False)
+            why = f"NumPy path {slow.t_eval.ms(1)} ms"
+        rows.append(Row(what, row.t_eval, f"<= {target:g} ms", ms <= target, why))
     rows += _window_rows(models, repeats)
     for r in rows:
         print(f"  {r.what}: {r.ms()} ms; {r.target}; {r.verdict()}")
@@ -152,6 +161,7 @@ def section(rows: list[Row], notes: list[str], command: str, repeats: int) -> li
         HEADING,
         "",
         f"`{command}`; medians of {repeats} repeats (min-max), one run where it says 1.",
+        f"Evaluation kernels: {kernel_status()}.",
         "A drag's frame is a live solve (`solve(..., live=True)`): it starts from the frame",
         "before on the coarsest level that agrees with the preview level, and stops on the",
         "finest level with at most `SolverOptions.live_triangles` triangles, never touching",

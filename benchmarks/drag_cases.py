@@ -83,13 +83,15 @@ class Drag:
 def drag(problem, repeats: int, frames: int = 10, options=None) -> Drag:
     """``repeats`` drags: each ``frames`` live frames (the dragged node moved by
     :data:`FRAME_MOVE` of the size, re-solved from the frame before) and the solve on
-    release. The first drag (which sets the levels up) is not counted."""
+    release. Every drag starts from the same solved edit, as when the user undoes a drag
+    and makes it again. The first drag (which sets the levels up) is not counted."""
     surface, opts = problem.surface, options or problem.options
     size = surface.lattice.size
     x, fixed, r = _dragged(problem)
-    result = run_to_end(solve(surface, x, fixed, options=opts))
+    start = run_to_end(solve(surface, x, fixed, options=opts))
     frame_t, release_t, frames_ok, release_ok, level = [], [], True, True, 0
     for rep in range(repeats + 1):
+        result = start  # every repeat is the same drag, from the same solved edit
         for _ in range(frames):
             x = np.array(result.nodes)
             x[r] += FRAME_MOVE * size

@@ -149,6 +149,7 @@ def _header(r: Results, lines: list[str]) -> None:
     lines.append(f"- CPU: {env['cpu']} ({env['platform']})")
     lines.append(f"- Python {env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']}")
     lines.append(f"- BLAS threads: {env['blas']}")
+    lines.append(f"- evaluation kernels: {env['kernels']}")
     lines.append(
         f"- every time is the median of {r.repeats} runs, (min-max) beside it; the "
         "machine is shared, so single runs can be slower\n"

@@ -198,6 +198,7 @@ def main(
         f"python -m benchmarks{' --quick' if quick else ''}: {env['cpu']}; Python "
         f"{env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']}; {env['blas']}"
     )
+    print(f"evaluation kernels: {env['kernels']}")
     print(f"{repeats} repeats per timing; medians (min-max)\n")
     command = " ".join(["python -m benchmarks", *argv])
     if args.only == "constraints":

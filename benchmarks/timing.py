@@ -8,6 +8,7 @@ import platform
 import resource
 import time
 from collections.abc import Callable, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -140,4 +141,37 @@ def environment(user_blas: Mapping[str, str] | None = None) -> dict[str, str]:
         "scipy": scipy.__version__,
         "blas": blas,
         "platform": platform.platform(),
+        "kernels": kernel_status(),
     }
+
+
+@contextmanager
+def numpy_path():
+    """Within: every evaluation takes the NumPy path (what numba's kernels are measured
+    against, in the same run)."""
+    from isochor.core import kernels
+
+    previous = kernels.set_mode("numpy")
+    try:
+        yield
+    finally:
+        kernels.set_mode(previous)
+
+
+def compiled() -> bool:
+    """Whether the compiled kernels are in use (so a NumPy-path figure means something)."""
+    from isochor.core import kernels
+
+    return kernels.active()
+
+
+def kernel_status() -> str:
+    """Wait for the optional compiled kernels (``core.kernels``) so that every timing
+    measures one path, and say which: numba's version, or why the NumPy path runs."""
+    from isochor.core import kernels
+
+    if kernels.ready(timeout=900):
+        import numba
+
+        return f"compiled (numba {numba.__version__}); NumPy-path figures where a row says so"
+    return f"NumPy path ({kernels.status()})"

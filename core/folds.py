@@ -279,6 +279,10 @@ class FoldGuard:
             ]
             for b in range(3):
                 g[b, s : s + width] = (inv[b, 0] * d[0] + inv[b, 1] * d[1] + inv[b, 2] * d[2]).T
+        #: (nodes,) the largest |grad B_node| over the samples (see :meth:`_inactive`)
+        self._reach = np.sqrt(np.einsum("bpn,bpn->pn", g, g)).max(axis=0) if k else np.zeros(0)
+        #: (nodes at the last full evaluation, its min det J - margin, its max |J|_F)
+        self._ref: tuple[np.ndarray, float, float] | None = None
 
     @property
     def nbytes(self) -> int:
@@ -296,6 +300,30 @@ class FoldGuard:
         c0, c1, c2 = self._columns(nodes)
         return np.einsum("pa,pa->p", c0, np.cross(c1, c2))
 
+    def _inactive(self, nodes: np.ndarray) -> bool:
+        """Whether no sample can be within the margin at ``nodes``, proven from the last
+        full evaluation (so the penalty and its derivatives are exactly zero, unevaluated).
+
+        ``J_p`` moves by ``D_p = sum_n d_n grad B_n(p)^T`` for node moves ``d_n``, so
+        ``|D_p|_F <= e = sum_n |d_n| reach_n``. det is multilinear in the columns, each
+        column of ``J_p`` is at most ``j = max_p |J_p|_F`` long and each of ``D_p`` at most
+        ``e``: ``|det(J_p + D_p) - det J_p| <= (j + e)^3 - j^3``. When that is below the
+        slack ``min_p det J_p - margin``, every sample stays above the margin."""
+        ref = self._ref  # one tuple: another thread may replace it, never half of it
+        if ref is None or ref[1] <= 0:
+            return False
+        x0, slack, j = ref
+        e = float(np.sqrt(np.einsum("ij,ij->i", nodes - x0, nodes - x0)) @ self._reach)
+        return (j + e) ** 3 - j**3 < slack
+
+    def _evaluate(self, nodes: np.ndarray):
+        """Columns and det J at every sample; remembers them for :meth:`_inactive`."""
+        c0, c1, c2 = cols = self._columns(nodes)
+        dets = np.einsum("pa,pa->p", c0, np.cross(c1, c2))
+        j = float(np.sqrt(np.einsum("bpa,bpa->p", cols, cols).max()))
+        self._ref = (np.array(nodes, dtype=np.float64), float(dets.min()) - self.margin, j)
+        return c0, c1, c2, dets
+
     def value_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
         """The penalty and its exact gradient with respect to the node positions.
 
@@ -307,8 +335,10 @@ class FoldGuard:
         grad = np.zeros((self.lattice.n_nodes, 3))
         if k == 0 or self.weight == 0:
             return 0.0, grad
-        c0, c1, c2 = self._columns(nodes)
-        dets = np.einsum("pa,pa->p", c0, np.cross(c1, c2))
+        nodes = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+        if self._inactive(nodes):  # the usual case: provably nowhere near a fold
+            return 0.0, grad
+        c0, c1, c2, dets = self._evaluate(nodes)
         short = np.maximum(self.margin - dets, 0.0)
         active = np.flatnonzero(short > 0)
         if active.size == 0:  # the usual case: nowhere near a fold, nothing more to do
@@ -333,8 +363,11 @@ class FoldGuard:
         n = 3 * self.lattice.n_nodes
         if self.n_points == 0 or self.weight == 0:
             return np.zeros((n, n))
-        c0, c1, c2 = self._columns(nodes)
-        short = np.maximum(self.margin - np.einsum("pa,pa->p", c0, np.cross(c1, c2)), 0.0)
+        nodes = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+        if self._inactive(nodes):
+            return np.zeros((n, n))
+        c0, c1, c2, dets = self._evaluate(nodes)
+        short = np.maximum(self.margin - dets, 0.0)
         active = np.flatnonzero(short > 0)
         if active.size == 0:
             return np.zeros((n, n))

@@ -186,3 +186,28 @@ def test_blocked_winding_numbers_are_one_inside_and_zero_outside():
     points = points[np.abs(r - 1.0) > 0.05]  # clear of the faceted surface
     w = winding_numbers(points, mesh.vertices[mesh.faces])
     np.testing.assert_allclose(w, np.where(np.linalg.norm(points, axis=1) < 1, 1.0, 0.0), atol=1e-9)
+
+
+def test_guard_skips_only_what_it_can_prove_is_above_the_margin():
+    """After a full evaluation the guard answers 0 without evaluating while its bound shows
+    every sample above the margin: over random walks of the nodes, every answer equals a
+    fresh guard's (which has nothing to skip from), and the skip is taken for small moves."""
+    rng = np.random.default_rng(11)
+    lattice = _rotated_lattice((4, 3, 3))
+    points = _inside_frame(lattice, 400, seed=12)
+    guard = FoldGuard(lattice, points, margin=0.3, weight=3.0)
+    skipped = 0
+    for walk in range(6):
+        nodes = lattice.rest_nodes + rng.normal(scale=0.1 * walk, size=(lattice.n_nodes, 3))
+        for _ in range(25):
+            nodes = nodes + rng.normal(scale=10.0 ** rng.uniform(-5, -1), size=nodes.shape)
+            fresh = FoldGuard(lattice, points, margin=0.3, weight=3.0)
+            proven = guard._inactive(nodes)
+            if proven:
+                skipped += 1
+                assert guard.determinants(nodes).min() > guard.margin
+            value, grad = guard.value_and_gradient(nodes)
+            value0, grad0 = fresh.value_and_gradient(nodes)
+            assert value == value0 and np.array_equal(grad, grad0)
+            assert np.array_equal(guard.gauss_newton(nodes), fresh.gauss_newton(nodes))
+    assert skipped >= 20, "small moves far from any fold are answered without evaluating"
