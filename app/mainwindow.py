@@ -55,6 +55,10 @@ class MainWindow(FramesMixin, QMainWindow):
         self.viewport = Viewport(self)
         self.setCentralWidget(self.viewport)
         self.session = EditorSession(document if document is not None else Document.example(), self)
+        # a paint outside a frame (Qt's, after a mouse move or an overlay change) holds the
+        # solver too, like a frame does (see isochor.app.worker)
+        self.viewport.before_paint = self.session.worker.hold
+        self.viewport.after_paint = self.session.worker.release
         self.files = FileCommands(self)
         self.panel = Panel()
         self.plot = ConvergencePlot()

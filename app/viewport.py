@@ -54,6 +54,10 @@ from .viewtools import ToolsMixin
 DRAG_THRESHOLD = 3.0
 
 
+def _nothing() -> None:
+    pass
+
+
 class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInteractor):
     """The pyvistaqt view with Isochor's actors and node interaction.
 
@@ -110,6 +114,8 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
         self.handles = HandleMarkers(self.overlay)
         self.box_mode = False
         self.visible_only = False  #: box selection skips the nodes the model hides
+        #: called around every paint (the window holds the solver worker meanwhile)
+        self.before_paint = self.after_paint = _nothing
         self._mouse: QPointF | None = None  # the last mouse position seen
         self._size = 1.0
         self._up = AXES["z"]
@@ -181,7 +187,11 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
 
     def paintGL(self) -> None:
         t0 = time.perf_counter()
-        super().paintGL()
+        self.before_paint()  # the solver starts no step while the renderer has the cores
+        try:
+            super().paintGL()
+        finally:
+            self.after_paint()
         self.paint_seconds = time.perf_counter() - t0
         self.paints += 1
         if self.paints == 1:
