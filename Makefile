@@ -37,8 +37,11 @@ lint: venv
 assets: venv
 	$(PY) assets/make_assets.py
 
+# the window's rows of the benchmark need a display: a virtual one where there is none
+XVFB := $(if $(DISPLAY),,$(shell command -v xvfb-run >/dev/null 2>&1 && echo xvfb-run -a))
+
 bench: sysdeps venv
-	$(PY) -m benchmarks $(ARGS)
+	$(XVFB) $(PY) -m benchmarks $(ARGS)
 
 clean:
 	rm -rf $(VENV) build dist *.egg-info .pytest_cache out

@@ -57,8 +57,7 @@ class MainWindow(FramesMixin, QMainWindow):
         self.session = EditorSession(document if document is not None else Document.example(), self)
         # a paint outside a frame (Qt's, after a mouse move or an overlay change) holds the
         # solver too, like a frame does (see isochor.app.worker)
-        self.viewport.before_paint = self.session.worker.hold
-        self.viewport.after_paint = self.session.worker.release
+        self.viewport.paint_hold = self.session.worker.held
         self.files = FileCommands(self)
         self.panel = Panel()
         self.plot = ConvergencePlot()

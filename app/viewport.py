@@ -25,6 +25,7 @@ projection and picking maths are in :mod:`isochor.app.picking`. GUI thread only.
 from __future__ import annotations
 
 import time
+from contextlib import nullcontext
 
 import numpy as np
 from PySide6.QtCore import QPoint, QPointF, QRect, QSize, Qt, Signal
@@ -52,10 +53,6 @@ from .viewtools import ToolsMixin
 
 #: The mouse must travel this many pixels before a press becomes a drag.
 DRAG_THRESHOLD = 3.0
-
-
-def _nothing() -> None:
-    pass
 
 
 class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInteractor):
@@ -114,8 +111,7 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
         self.handles = HandleMarkers(self.overlay)
         self.box_mode = False
         self.visible_only = False  #: box selection skips the nodes the model hides
-        #: called around every paint (the window holds the solver worker meanwhile)
-        self.before_paint = self.after_paint = _nothing
+        self.paint_hold = nullcontext  #: around every paint (the window: its solver held)
         self._mouse: QPointF | None = None  # the last mouse position seen
         self._size = 1.0
         self._up = AXES["z"]
@@ -187,11 +183,8 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
 
     def paintGL(self) -> None:
         t0 = time.perf_counter()
-        self.before_paint()  # the solver starts no step while the renderer has the cores
-        try:
+        with self.paint_hold():  # the solver starts no step while the renderer has the cores
             super().paintGL()
-        finally:
-            self.after_paint()
         self.paint_seconds = time.perf_counter() - t0
         self.paints += 1
         if self.paints == 1:

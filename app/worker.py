@@ -124,6 +124,15 @@ class SolveWorker(QObject):
     def release(self) -> None:
         self.gate.set()
 
+    @contextmanager
+    def held(self) -> Iterator[None]:
+        """:meth:`hold` for the duration of a ``with`` block."""
+        self.hold()
+        try:
+            yield
+        finally:
+            self.release()
+
     def stepping_now(self) -> bool:
         """A solver thread is inside a step (of any job, a stopped one's last included)."""
         return self._stepping > 0

@@ -180,3 +180,32 @@ def face_volume_range(rows, cx, cy, cz, f0, f1, f2, start, stop):
         qx, qy, qz = x[k] - cx, y[k] - cy, z[k] - cz
         total += ax * (by * qz - bz * qy) + ay * (bz * qx - bx * qz) + az * (bx * qy - by * qx)
     return total
+
+
+@njit(**KERNEL)
+def winding_range(points, corners, out, start, stop):
+    """``out[q]`` for the points ``start..stop`` of the (3, p) ``points``: the generalised
+    winding number over the triangles ``corners`` (3 corners, 3 coordinates, t), the
+    solid-angle formula of :func:`core.bodies.winding_numbers` (Van Oosterom and
+    Strackee), triangle by triangle in the same order."""
+    t = corners.shape[2]
+    a, b, c = corners[0], corners[1], corners[2]
+    for q in range(start, stop):
+        px, py, pz = points[0, q], points[1, q], points[2, q]
+        total = 0.0
+        for f in range(t):
+            ax, ay, az = a[0, f] - px, a[1, f] - py, a[2, f] - pz
+            bx, by, bz = b[0, f] - px, b[1, f] - py, b[2, f] - pz
+            cx, cy, cz = c[0, f] - px, c[1, f] - py, c[2, f] - pz
+            la = np.sqrt(ax * ax + ay * ay + az * az)
+            lb = np.sqrt(bx * bx + by * by + bz * bz)
+            lc = np.sqrt(cx * cx + cy * cy + cz * cz)
+            num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+            den = (
+                la * lb * lc
+                + (ax * bx + ay * by + az * bz) * lc
+                + (ax * cx + ay * cy + az * cz) * lb
+                + (bx * cx + by * cy + bz * cz) * la
+            )
+            total += np.arctan2(num, den)
+        out[q] = total / (2.0 * np.pi)

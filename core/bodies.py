@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
+
 #: above this many (point, triangle) pairs the containment and overlap tests are skipped
 BUDGET = 50_000_000
 #: sample points per body and pair in the overlap test
@@ -187,8 +189,11 @@ def winding_numbers(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     corners = np.ascontiguousarray(np.asarray(triangles, dtype=np.float64).transpose(1, 2, 0))
     out = np.zeros(len(points))
-    if corners.shape[2] == 0:
+    if corners.shape[2] == 0 or len(points) == 0:
         return out
+    fast = kernels.winding_numbers(np.ascontiguousarray(points.T), corners)
+    if fast is not None:
+        return fast
     step = max(1, WINDING_BLOCK // corners.shape[2])
     for s in range(0, len(points), step):
         p = points[s : s + step]

@@ -7,7 +7,9 @@ What they compute (the same numbers as the NumPy path, to rounding; ``tests/test
   transpose, evaluating the Bernstein basis per point from its lattice coordinates
   (:mod:`core._jitbasis`);
 - :func:`fans`, :func:`volume_gradient`, :func:`face_volume`: the volume and its gradient
-  of :class:`core.volume.VolumeOperator`, vertex by vertex (:mod:`core._jitvolume`).
+  of :class:`core.volume.VolumeOperator`, vertex by vertex (:mod:`core._jitvolume`);
+- :func:`winding_numbers`: :func:`core.bodies.winding_numbers` (the fold guard's interior
+  samples, on the first solve of a model).
 
 Each returns None when the compiled kernels are not there (yet); the caller then runs its
 NumPy code. The kernels are there once numba is installed (the ``fast`` extra), imports,
@@ -46,6 +48,8 @@ START_SIZE = 4096
 #: points, vertices or faces per range of work (a multiple of the kernels' block)
 CHUNK = 1 << 14
 _FACE_CHUNK = 1 << 15
+#: (point, triangle) pairs per range of winding-number work
+WINDING_PAIRS = 1 << 20
 
 #: threads per call (:mod:`core._jitthreads`)
 set_threads = _jitthreads.set_threads
@@ -145,6 +149,7 @@ def _compile() -> SimpleNamespace:
         (_jitvolume.build_fans, t.Tuple((array(i8, 1, False), array(i4, 1, False)))(l2, i8)),
         (_jitvolume.fan_gradient_range, f8(r2, f8, f8, f8, l1, s1, w2, i8, i8)),
         (_jitvolume.face_volume_range, f8(r2, f8, f8, f8, l1, l1, l1, i8, i8)),
+        (_jitvolume.winding_range, t.void(r2, r3, w1, i8, i8)),
     ]
     for fn, sig in signatures:
         fn.compile(sig)
@@ -227,7 +232,11 @@ def _self_check(k: SimpleNamespace) -> str:
     np.add.at(corner, faces[:, 1], np.cross(c, a) / 6.0)
     np.add.at(corner, faces[:, 2], np.cross(a, b) / 6.0)
     vol, grad = volume_gradient(fans(faces, 4, k), np.ascontiguousarray(pts.T), None, k)
+    inside = np.array([[0.1, 0.1, 0.1], [5.0, 5.0, 5.0]]).T.copy()  # in and out of a tetra
+    tetra = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    winds = winding_numbers(inside, np.ascontiguousarray(tetra[faces].transpose(1, 2, 0)), k)
     checks = {
+        "winding": winds is not None and np.allclose(np.abs(winds), [1.0, 0.0], atol=1e-12),
         "apply": np.allclose(got, nodes.T @ dense, rtol=1e-12, atol=1e-12),
         "transpose": np.allclose(back, dense @ g.T, rtol=1e-12, atol=1e-12),
         "volume": abs(vol - exact) <= 1e-12 and np.allclose(grad.T, corner, atol=1e-12),
@@ -348,6 +357,21 @@ def face_volume(corners: np.ndarray, rows: np.ndarray, center, k=None) -> float 
 
     _jitthreads.run(task, len(ranges))
     return float(part.sum()) / 6.0
+
+
+@_guard
+def winding_numbers(points: np.ndarray, corners: np.ndarray, k=None) -> np.ndarray | None:
+    """(p,) winding numbers of the (3, p) points over the triangles ``corners`` (3, 3, t);
+    None: no kernels."""
+    k = k or _kernels(points.shape[1] * corners.shape[2])
+    if k is None:
+        return None
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    tri = np.ascontiguousarray(corners, dtype=np.float64)
+    out = np.empty(pts.shape[1])
+    ranges = _chunks(pts.shape[1], max(1, WINDING_PAIRS // max(tri.shape[2], 1)))
+    _jitthreads.run(lambda i: k.winding_range(pts, tri, out, *ranges[i]), len(ranges))
+    return out
 
 
 if __name__ == "__main__" and sys.argv[1:] == ["--compile"]:  # see _compile_in_child

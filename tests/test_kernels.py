@@ -290,3 +290,21 @@ def test_numba_caches_in_a_user_folder(tmp_path):
     folder = _child(code, **env).strip()
     assert folder.startswith(str(tmp_path / "isochor" / "numba")), folder
     assert _child(code, NUMBA_CACHE_DIR=str(tmp_path / "mine")).strip() == str(tmp_path / "mine")
+
+
+def test_winding_numbers_match_numpy(compiled):
+    """The fold guard's interior samples: the same winding numbers either way, inside,
+    outside and near the surface of a torus (a hole) and an open triangle set."""
+    from isochor.core.bodies import winding_numbers
+
+    rng = np.random.default_rng(9)
+    mesh = torus_levels(3)[-1]
+    pts = rng.uniform(-1.5, 1.5, size=(700, 3)) * [1, 1, 0.5]
+    pts[:50] = mesh.vertices[:50] * 1.0001  # about half on the surface
+    for tri in (mesh.vertices[mesh.faces], mesh.vertices[mesh.faces[::2]]):
+        fast = winding_numbers(pts, tri)
+        with numpy_path():
+            slow = winding_numbers(pts, tri)
+        assert close(fast, slow, 1e-12)
+    inside = winding_numbers(pts, mesh.vertices[mesh.faces])
+    assert np.any(np.abs(inside) > 0.9) and np.any(np.abs(inside) < 0.1)
