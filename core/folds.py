@@ -19,6 +19,7 @@ from math import comb
 
 import numpy as np
 
+from . import kernels
 from .bodies import winding_numbers
 from .errors import IsochorError
 from .lattice import Lattice
@@ -135,8 +136,11 @@ def _determinants(lattice: Lattice, uvw_t: np.ndarray, nodes: np.ndarray) -> np.
     Jacobian is ``J = Ju @ inv(axes).T``."""
     l, m, n = lattice.shape
     grid = np.asarray(nodes, dtype=np.float64).reshape(l, m, n, 3)
-    x_t = np.ascontiguousarray(grid.transpose(0, 1, 3, 2)).reshape(l * m * 3, n)
     to_world = np.linalg.inv(lattice.axes).T
+    fast = kernels.determinants(uvw_t, grid, to_world)
+    if fast is not None:
+        return fast
+    x_t = np.ascontiguousarray(grid.transpose(0, 1, 3, 2)).reshape(l * m * 3, n)
     p = uvw_t.shape[1]
     out = np.empty(p)
     for s in range(0, p, BLOCK):

@@ -9,7 +9,9 @@ What they compute (the same numbers as the NumPy path, to rounding; ``tests/test
 - :func:`fans`, :func:`volume_gradient`, :func:`face_volume`: the volume and its gradient
   of :class:`core.volume.VolumeOperator`, vertex by vertex (:mod:`core._jitvolume`);
 - :func:`winding_numbers`: :func:`core.bodies.winding_numbers` (the fold guard's interior
-  samples, on the first solve of a model).
+  samples, on the first solve of a model);
+- :func:`determinants`: det J at many points, the fold check of every result
+  (:mod:`core._jitfolds`).
 
 Each returns None when the compiled kernels are not there (yet); the caller then runs its
 NumPy code. The kernels are there once numba is installed (the ``fast`` extra), imports,
@@ -131,7 +133,7 @@ def _fail(why: str) -> None:
 
 def _compile() -> SimpleNamespace:
     """Compile the kernels for their argument types (or load them from numba's cache)."""
-    from . import _jitbasis, _jitvolume
+    from . import _jitbasis, _jitfolds, _jitvolume
     from ._jitbase import numba
 
     t = numba.types
@@ -141,7 +143,7 @@ def _compile() -> SimpleNamespace:
         return t.Array(dtype, dims, "C", readonly=readonly)
 
     w1, w2 = array(f8, 1, False), array(f8, 2, False)
-    r2, r3 = array(f8, 2), array(f8, 3)
+    r2, r3, r4 = array(f8, 2), array(f8, 3), array(f8, 4)
     l1, l2, s1 = array(i8, 1), array(i8, 2), array(i4, 1)
     signatures = [
         (_jitbasis.apply_range, t.void(r2, r3, w2, i8, i8)),
@@ -150,6 +152,7 @@ def _compile() -> SimpleNamespace:
         (_jitvolume.fan_gradient_range, f8(r2, f8, f8, f8, l1, s1, w2, i8, i8)),
         (_jitvolume.face_volume_range, f8(r2, f8, f8, f8, l1, l1, l1, i8, i8)),
         (_jitvolume.winding_range, t.void(r2, r3, w1, i8, i8)),
+        (_jitfolds.determinant_range, t.void(r2, r4, r2, w1, i8, i8)),
     ]
     for fn, sig in signatures:
         fn.compile(sig)
@@ -185,7 +188,7 @@ def _compile_in_child(marker) -> None:
 def _load() -> None:
     """The background thread: import numba, compile (or load from the cache), check."""
     try:
-        from . import _jitbase
+        from . import _jitbase, _jitcheck
 
         if not _jitbase.AVAILABLE:
             with _lock:
@@ -197,7 +200,7 @@ def _load() -> None:
             if not marker.exists():
                 _compile_in_child(marker)
         k = _compile()
-        why = _self_check(k)
+        why = _jitcheck.self_check(k, sys.modules[__name__])
         if why:
             _fail(f"self-check: {why}")
             return
@@ -205,44 +208,6 @@ def _load() -> None:
             _state.kernels, _state.status = k, "ready"
     except Exception as exc:  # never let the optional path break the program
         _fail(f"{type(exc).__name__}: {exc}")
-
-
-def _self_check(k: SimpleNamespace) -> str:
-    """Compare the kernels with NumPy on a tiny case; '' when they agree."""
-    from math import comb
-
-    rng = np.random.default_rng(7)
-    shape = (3, 4, 2)
-    uvw = rng.uniform(size=(3, 50))
-    nodes = rng.normal(size=(24, 3))
-    bases = [
-        np.array([comb(d - 1, i) * u**i * (1 - u) ** (d - 1 - i) for i in range(d)])
-        for d, u in zip(shape, uvw)
-    ]
-    dense = np.einsum("ip,jp,kp->ijkp", *bases).reshape(24, 50)
-    got = apply(uvw, nodes, shape, k)
-    g = rng.normal(size=(3, 50))
-    back = apply_transpose(uvw, g, shape, k)
-    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int64)
-    pts = rng.normal(size=(4, 3))
-    a, b, c = pts[faces[:, 0]], pts[faces[:, 1]], pts[faces[:, 2]]
-    exact = float(np.einsum("ij,ij->", a, np.cross(b, c))) / 6.0
-    corner = np.zeros((4, 3))  # dV/dP, corner by corner
-    np.add.at(corner, faces[:, 0], np.cross(b, c) / 6.0)
-    np.add.at(corner, faces[:, 1], np.cross(c, a) / 6.0)
-    np.add.at(corner, faces[:, 2], np.cross(a, b) / 6.0)
-    vol, grad = volume_gradient(fans(faces, 4, k), np.ascontiguousarray(pts.T), None, k)
-    inside = np.array([[0.1, 0.1, 0.1], [5.0, 5.0, 5.0]]).T.copy()  # in and out of a tetra
-    tetra = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
-    winds = winding_numbers(inside, np.ascontiguousarray(tetra[faces].transpose(1, 2, 0)), k)
-    checks = {
-        "winding": winds is not None and np.allclose(np.abs(winds), [1.0, 0.0], atol=1e-12),
-        "apply": np.allclose(got, nodes.T @ dense, rtol=1e-12, atol=1e-12),
-        "transpose": np.allclose(back, dense @ g.T, rtol=1e-12, atol=1e-12),
-        "volume": abs(vol - exact) <= 1e-12 and np.allclose(grad.T, corner, atol=1e-12),
-        "face volume": abs(face_volume(faces.T.copy(), pts.T.copy(), None, k) - exact) < 1e-12,
-    }
-    return ", ".join(name for name, ok in checks.items() if not ok)
 
 
 def _reset_after_fork() -> None:
@@ -371,6 +336,22 @@ def winding_numbers(points: np.ndarray, corners: np.ndarray, k=None) -> np.ndarr
     out = np.empty(pts.shape[1])
     ranges = _chunks(pts.shape[1], max(1, WINDING_PAIRS // max(tri.shape[2], 1)))
     _jitthreads.run(lambda i: k.winding_range(pts, tri, out, *ranges[i]), len(ranges))
+    return out
+
+
+@_guard
+def determinants(uvw: np.ndarray, grid: np.ndarray, to_world: np.ndarray, k=None):
+    """(p,) det J at the (3, p) lattice coordinates for the (l, m, n, 3) nodes ``grid``
+    (``to_world``: ``inv(axes).T``); None: no kernels."""
+    k = k or _kernels(uvw.shape[1])
+    if k is None:
+        return None
+    uvw = np.ascontiguousarray(uvw, dtype=np.float64)
+    x = np.ascontiguousarray(grid, dtype=np.float64)
+    t = np.ascontiguousarray(to_world, dtype=np.float64)
+    out = np.empty(uvw.shape[1])
+    ranges = _chunks(uvw.shape[1])
+    _jitthreads.run(lambda i: k.determinant_range(uvw, x, t, out, *ranges[i]), len(ranges))
     return out
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import kernels
 from .errors import IsochorError
 from .lattice import Lattice
 from .mesh import TriMesh
@@ -89,6 +90,7 @@ def load_model(path: str | Path) -> Model:
     """The level pyramid of a model file, the warnings of loading it and its fingerprint:
     the default :data:`ModelLoader`."""
     source = SourceFile.of(path)
+    kernels.start()  # (loaded in the background meanwhile: the pyramid's checks use them)
     loaded = load_mesh(path)
     levels = build_pyramid(loaded.mesh, bodies=loaded.bodies)
     return Model(tuple(levels), tuple(loaded.warnings), source)

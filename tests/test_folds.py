@@ -39,7 +39,7 @@ def _inside_frame(lattice: Lattice, count: int, seed: int) -> np.ndarray:
     return lattice.origin + uvw @ lattice.axes
 
 
-def test_determinants_match_lattice_jacobian_on_a_sheared_frame():
+def test_determinants_match_lattice_jacobian_on_a_sheared_frame(evaluation_path):
     rng = np.random.default_rng(0)
     lattice = _rotated_lattice((3, 4, 2))
     points = _inside_frame(lattice, 300, seed=1)
@@ -54,7 +54,7 @@ def test_determinants_match_lattice_jacobian_on_a_sheared_frame():
 
 
 @pytest.mark.parametrize("shape", [(2, 2, 2), (5, 3, 2), (10, 10, 10)])
-def test_blocked_determinants_match_across_blocks_and_shapes(shape):
+def test_blocked_determinants_match_across_blocks_and_shapes(shape, evaluation_path):
     rng = np.random.default_rng(2)
     lattice = _rotated_lattice(shape)
     points = _inside_frame(lattice, 9000, seed=3)  # more than one block

@@ -22,11 +22,10 @@ from isochor.core import lattice as lat_mod
 from isochor.core.examples import example_scenario
 from isochor.core.generators import run_to_end
 from isochor.core.lattice import Lattice
-from isochor.core.multilevel import EmbeddedSurface, solve
+from isochor.core.multilevel import solve
 from isochor.core.problem import build
 from isochor.core.shapes import sphere_levels, torus, torus_levels
 from isochor.core.volume import VolumeOperator, signed_volume
-from tests.numdiff import central_gradient, check_vertex_gradient
 
 
 @pytest.fixture(scope="module")
@@ -129,22 +128,6 @@ def test_volume_and_gradient_match_numpy_on_any_triangle_set(compiled, name):
     for i, w in enumerate((np.cross(b, c), np.cross(c, a), np.cross(a, b))):
         np.add.at(corner, f[:, i], w / 6.0)
     assert close(grad, corner, 1e-11)
-
-
-def test_compiled_gradients_match_central_differences(compiled):
-    rng = np.random.default_rng(4)
-    mesh = sphere_levels(3)[-1]
-    verts = mesh.vertices + rng.normal(scale=0.05, size=mesh.vertices.shape)
-    op = VolumeOperator(mesh.faces, len(verts))
-    _, grad = op.value_and_gradient(verts)
-    check_vertex_gradient(op, verts, grad, rng)
-    levels = torus_levels(4)
-    lat = Lattice.around(levels[-1].vertices, (4, 3, 5))
-    surface = EmbeddedSurface(lat, levels)
-    nodes = lat.rest_nodes + rng.normal(scale=0.05, size=(lat.n_nodes, 3))
-    _, node_grad = surface.level(-1).volume_and_gradient(nodes)
-    num = central_gradient(surface.volume, nodes)
-    assert np.max(np.abs(num - node_grad)) <= 1e-6 * np.max(np.abs(node_grad))
 
 
 def test_results_do_not_depend_on_the_thread_count(compiled):

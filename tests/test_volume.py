@@ -20,7 +20,7 @@ def test_cube_volume_is_exact_anywhere_and_sign_follows_winding():
         assert signed_volume(v, CUBE_F[:, ::-1]) == pytest.approx(-24.0, rel=1e-12)
 
 
-def test_volume_gradient_matches_central_differences():
+def test_volume_gradient_matches_central_differences(evaluation_path):
     rng = np.random.default_rng(4)
     mesh = sphere_levels(3)[-1]
     verts = mesh.vertices + rng.normal(scale=0.05, size=mesh.vertices.shape)
@@ -30,7 +30,7 @@ def test_volume_gradient_matches_central_differences():
     check_vertex_gradient(op, verts, grad, rng)
 
 
-def test_volume_gradient_wrt_nodes_matches_central_differences():
+def test_volume_gradient_wrt_nodes_matches_central_differences(evaluation_path):
     rng = np.random.default_rng(5)
     levels = torus_levels(4)
     lat = Lattice.around(levels[-1].vertices, (4, 3, 3))
