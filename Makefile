@@ -20,6 +20,9 @@ $(PY):
 $(VENV)/.installed: pyproject.toml isochor/__init__.py | $(PY)
 	$(PY) -m pip install --upgrade pip 'setuptools>=68' wheel
 	$(PY) -m pip install -e '.[test,bench,fast]'
+	# compile the optional kernels into the user's cache now (else the first run does,
+	# in the background); a failure only leaves the NumPy path
+	-$(PY) -m isochor.core.kernels --compile
 	touch $@
 
 run: sysdeps venv

@@ -34,6 +34,7 @@ the GIL) and combined in range order, so results do not depend on the thread cou
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
@@ -47,6 +48,8 @@ from . import _jitthreads
 ENV_OFF = "ISOCHOR_NO_JIT"
 #: evaluations at least this large (points, vertices or faces) start the compilation
 START_SIZE = 4096
+#: seconds a compiling child may take (and its lock counts as held)
+COMPILE_LIMIT = 900
 #: points, vertices or faces per range of work (a multiple of the kernels' block)
 CHUNK = 1 << 14
 _FACE_CHUNK = 1 << 15
@@ -162,27 +165,83 @@ def _compile() -> SimpleNamespace:
 
 def _compile_in_child(marker) -> None:
     """Fill numba's cache from a child interpreter: compiling holds the GIL for much of
-    its seconds, which here would slow the caller's NumPy work (every GIL hand-over
-    waits up to the switch interval). Where the child cannot run, this thread compiles;
-    a child killed by a signal (a crash in the compiler) switches the kernels off."""
+    its seconds, which here would slow the caller's NumPy work. Where the child cannot
+    run, this thread compiles; a child killed by a signal switches the kernels off.
+    One child at a time per cache folder: while another process's child compiles (its
+    lock younger than :data:`COMPILE_LIMIT`), this one waits for the marker, which the
+    child writes itself (so one that outlives a short program still counts)."""
     import subprocess
+    import time
 
-    cmd = [sys.executable, "-m", __name__, "--compile"]
+    lock = marker.with_name(marker.name + ".lock")
+    if not _take(lock):
+        deadline = time.monotonic() + COMPILE_LIMIT
+        while not marker.exists() and _held(lock) and time.monotonic() < deadline:
+            time.sleep(0.5)
+        if marker.exists() or not _take(lock):
+            return
+    cmd = [sys.executable, "-m", __name__, "--compile", str(marker)]
     env = dict(os.environ, **{ENV_OFF: ""})
     try:
-        done = subprocess.run(cmd, capture_output=True, timeout=900, env=env, check=False)
+        done = subprocess.run(cmd, capture_output=True, timeout=COMPILE_LIMIT, env=env)
     except subprocess.TimeoutExpired as exc:
         raise RuntimeError("compiling took more than 15 minutes") from exc
     except OSError:
         return
+    finally:
+        lock.unlink(missing_ok=True)
     if done.returncode < 0:
         raise RuntimeError(f"the compiler crashed (signal {-done.returncode}) in a child process")
-    if done.returncode == 0:
+
+
+def _held(lock) -> bool:
+    """Another process compiles: its lock is there and younger than COMPILE_LIMIT."""
+    import time
+
+    try:
+        return time.time() - lock.stat().st_mtime < COMPILE_LIMIT
+    except OSError:
+        return False
+
+
+def _take(lock) -> bool:
+    """Create the lock (a stale one is replaced); False while another process holds it."""
+    for _ in range(2):
         try:
-            marker.parent.mkdir(parents=True, exist_ok=True)
-            marker.touch()
-        except OSError:
-            pass
+            lock.parent.mkdir(parents=True, exist_ok=True)
+            os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            return True
+        except FileExistsError:
+            if _held(lock):
+                return False
+            lock.unlink(missing_ok=True)
+        except OSError:  # an unwritable folder: compile without a lock
+            return True
+    return False
+
+
+def _compile_and_mark(marker: str) -> None:
+    """The child's work (``python -m isochor.core.kernels --compile MARKER``): the marker
+    when it compiled, the lock gone either way (its parent may have ended before it)."""
+    from pathlib import Path
+
+    done = Path(marker)
+    try:
+        _compile()
+        with contextlib.suppress(OSError):
+            done.touch()
+    finally:
+        done.with_name(done.name + ".lock").unlink(missing_ok=True)
+
+
+def _marker():
+    """The file that says the cache holds these kernels, or None without a cache."""
+    from . import _jitbase
+
+    if not (_jitbase.AVAILABLE and _jitbase.CACHE):
+        return None
+    version = f"{_jitbase.numba.__version__}-py{sys.version_info[0]}{sys.version_info[1]}"
+    return _jitbase.cache_dir() / f"compiled-{version}"
 
 
 def _load() -> None:
@@ -194,11 +253,9 @@ def _load() -> None:
             with _lock:
                 _state.status, _state.reason = "off", _jitbase.ERROR
             return
-        if _jitbase.CACHE:
-            version = f"{_jitbase.numba.__version__}-py{sys.version_info[0]}{sys.version_info[1]}"
-            marker = _jitbase.cache_dir() / f"compiled-{version}"
-            if not marker.exists():
-                _compile_in_child(marker)
+        marker = _marker()
+        if marker is not None and not marker.exists():
+            _compile_in_child(marker)
         k = _compile()
         why = _jitcheck.self_check(k, sys.modules[__name__])
         if why:
@@ -355,5 +412,9 @@ def determinants(uvw: np.ndarray, grid: np.ndarray, to_world: np.ndarray, k=None
     return out
 
 
-if __name__ == "__main__" and sys.argv[1:] == ["--compile"]:  # see _compile_in_child
-    _compile()
+if __name__ == "__main__" and sys.argv[1:2] == ["--compile"]:  # see _compile_in_child
+    _mark = sys.argv[2] if len(sys.argv) > 2 else _marker()  # (`make venv` gives none)
+    if _mark:
+        _compile_and_mark(_mark)
+    else:
+        _compile()

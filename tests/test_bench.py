@@ -30,7 +30,7 @@ from benchmarks.scale import ScaleRow
 from benchmarks.tables import Table1Row
 from benchmarks.timing import Timing
 from isochor.core import lattice as lat_mod
-from isochor.core import solver as solver_mod
+from isochor.core import lbfgs as lbfgs_mod
 from isochor.core import volume as vol_mod
 from isochor.core.lattice import Lattice, PointBasis
 from isochor.core.shapes import sphere_levels, torus
@@ -177,7 +177,7 @@ def test_start_level_sweep_and_first_record(small_case, small_rows):
 # -- where the time goes -----------------------------------------------------------------------
 def _core_state():
     classes = (VolumeOperator, PointBasis, SpringNetwork)
-    return ({c: dict(vars(c)) for c in classes}, solver_mod.line_search, scipy.optimize.line_search)
+    return ({c: dict(vars(c)) for c in classes}, lbfgs_mod.line_search, scipy.optimize.line_search)
 
 
 def test_profile_comes_from_cprofile_and_leaves_the_core_alone(small_case):

@@ -291,3 +291,28 @@ def test_winding_numbers_match_numpy(compiled):
         assert close(fast, slow, 1e-12)
     inside = winding_numbers(pts, mesh.vertices[mesh.faces])
     assert np.any(np.abs(inside) > 0.9) and np.any(np.abs(inside) < 0.1)
+
+
+def test_one_compiling_child_at_a_time(tmp_path, monkeypatch):
+    """Several programs started at once with an empty cache (command-line runs, the test
+    suite's subprocesses): the first takes the lock and compiles, the others wait for its
+    marker instead of compiling the same kernels again; a stale lock is taken over."""
+    import threading
+    import time
+
+    marker = tmp_path / "compiled-x"
+    lock = tmp_path / "compiled-x.lock"
+    assert kernels._take(lock) and not kernels._take(lock)  # held by "another process"
+
+    def compile_again(*args, **kwargs):
+        raise AssertionError("a second child compiled while the first held the lock")
+
+    monkeypatch.setattr("subprocess.run", compile_again)
+    threading.Timer(0.8, marker.touch).start()  # the other process's child finishes
+    t0 = time.monotonic()
+    kernels._compile_in_child(marker)
+    assert marker.exists() and 0.7 <= time.monotonic() - t0 < 30
+
+    old = time.time() - 2 * kernels.COMPILE_LIMIT  # a lock left by a killed process
+    os.utime(lock, (old, old))
+    assert not kernels._held(lock) and kernels._take(lock) and kernels._held(lock)
