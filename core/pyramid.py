@@ -32,13 +32,10 @@ scaled by 1000 is the same pyramid scaled by 1000.
 
 from __future__ import annotations
 
-import os
 import threading
 
 import numpy as np
 
-from . import _qem
-from ._qem import simplify_raw
 from .mesh import TriMesh
 from .repair import (
     EdgeReport,
@@ -56,10 +53,6 @@ MIN_BODY = 8
 MAX_OUTSIDE = 0.05
 #: retries of a failed level: target = factor * the first target
 RETRY_FACTORS = (1.25, 1.6)
-
-#: a body of at least this many triangles is simplified as two halves at once
-#: (:func:`simplify_halves`): its first level takes about half the time on two cores
-SPLIT_FACES = 1_000_000
 
 # fast-simplification keeps its mesh in global C++ state: one simplification at a time
 _LOCK = threading.Lock()
@@ -169,69 +162,13 @@ def _coarser(
 
 def simplify(mesh: TriMesh, target: int) -> TriMesh | None:
     """QEM-simplify ``mesh`` to about ``target`` triangles; tidy the result (drop
-    degenerate and cancelling triangles and unused vertices). None if nothing is left.
-    A body of :data:`SPLIT_FACES` triangles or more is simplified as two halves at once
-    (:func:`simplify_halves`) where that works."""
-    if mesh.n_faces >= SPLIT_FACES:
-        halves = simplify_halves(mesh, target)
-        if halves is not None:
-            return halves
+    degenerate and cancelling triangles and unused vertices). None if nothing is left."""
+    import fast_simplification  # compiled extension: imported on the first use
+
     with _LOCK:  # (the extension needs writable arrays: copies of the frozen ones)
-        points, faces = simplify_raw(np.array(mesh.vertices), mesh.faces.astype(np.int32), target)
-    return _tidy(points, faces)
-
-
-def simplify_halves(mesh: TriMesh, target: int) -> TriMesh | None:
-    """QEM on the two halves of a closed ``mesh`` at once, the far one in a child process
-    (:mod:`core._qem`; fast-simplification holds the GIL for all of its seconds), each
-    keeping its border (the cut) as it is; the halves are then joined at the cut's
-    vertices, which both keep exactly. The cut is the median plane across the longest
-    axis, by face centres.
-
-    None where it cannot help or did not work (one core, no child process, a join that is
-    not a closed surface): the caller then simplifies the whole mesh. The cut's triangles
-    stay fine in this level (a strip one triangle wide); the next level simplifies them."""
-    if (os.cpu_count() or 1) < 2:
-        return None
-    v, f = mesh.vertices, mesh.faces
-    axis = int(np.argmax(np.ptp(v, axis=0)))
-    key = v[f, axis].sum(axis=1)
-    near = key < np.median(key)
-    halves = [compact(v, f[side]) for side in (near, ~near)]
-    targets = [max(MIN_BODY, round(target * len(hf) / len(f))) for _, hf in halves]
-    try:
-        (fv, ff), t = halves[1], targets[1]
-        child = _qem.start(fv, ff, t)
-    except OSError:  # no child process here: the whole mesh, as before
-        return None
-    try:
-        (nv, nf), t = halves[0], targets[0]
-        with _LOCK:
-            here = simplify_raw(np.array(nv), nf.astype(np.int32), t, True)
-    except BaseException:  # (an interrupt included): the child goes too
-        child.kill()
-        _qem.finish(child)
-        raise
-    there = _qem.finish(child)
-    if there is None:
-        return None
-    points = np.concatenate([here[0], there[0]])
-    faces = np.concatenate([here[1], there[1] + len(here[0])])
-    # the cut welded: exact repeats become one vertex, every vertex kept in its order
-    # (the next level's QEM runs faster on the simplifier's own, local, order)
-    _, first, inverse = np.unique(points, axis=0, return_index=True, return_inverse=True)
-    order = np.argsort(first)
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order))
-    joined = _tidy(points[first[order]], rank[inverse.reshape(-1)][faces])
-    if joined is None or not balanced(joined.faces, joined.n_vertices):
-        return None
-    return joined
-
-
-def _tidy(points: np.ndarray, faces: np.ndarray) -> TriMesh | None:
-    """A simplified mesh without degenerate, cancelling or unused parts; None if nothing
-    is left."""
+        points, faces = fast_simplification.simplify(
+            np.array(mesh.vertices), mesh.faces.astype(np.int32), target_count=int(target)
+        )
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     faces, _ = drop_degenerate(faces)
     faces, _ = drop_duplicates(faces)

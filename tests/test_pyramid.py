@@ -150,34 +150,3 @@ def test_volume_tolerance_bounds():
     assert volume_tolerance(100_000) == 0.05
     assert volume_tolerance(400) == pytest.approx(0.1)
     assert volume_tolerance(20) == 0.25
-
-
-def test_a_big_body_is_simplified_as_two_halves_at_once(monkeypatch):
-    """Above SPLIT_FACES a level is made from two halves, one in a child process, joined at
-    the cut: the pyramid is as good as the whole mesh's (same checks), its first level has
-    about the triangles asked for, and the cut's vertices are shared, not doubled."""
-    mesh = icosphere(6)  # 81920 triangles
-    monkeypatch.setattr(isochor.core.pyramid, "SPLIT_FACES", 50_000)
-    first = isochor.core.pyramid.simplify_halves(mesh, 20_000)
-    assert first is not None, "two cores and a child process are there"
-    assert abs(first.n_faces - 20_000) <= 0.1 * 20_000
-    report = EdgeReport.of(first.faces, first.n_vertices)
-    assert report.boundary == 0 and report.unbalanced == 0 and count_bodies(first) == 1
-    assert 2 * first.n_vertices - first.n_faces == 4  # Euler: one closed sphere, welded
-    assert_good_pyramid(build_pyramid(mesh), mesh)
-
-
-def test_halves_that_do_not_join_fall_back_to_the_whole_mesh(monkeypatch):
-    mesh = icosphere(5)
-    monkeypatch.setattr(isochor.core.pyramid, "SPLIT_FACES", 10_000)
-
-    def broken(points, faces, target, preserve_border=False):  # moves the cut: no weld
-        from isochor.core._qem import simplify_raw
-
-        out, tri = simplify_raw(points, faces, target, False)
-        return out + 1e-9, tri
-
-    monkeypatch.setattr(isochor.core.pyramid, "simplify_raw", broken)
-    assert isochor.core.pyramid.simplify_halves(mesh, 5000) is None
-    monkeypatch.undo()
-    assert_good_pyramid(build_pyramid(mesh), mesh)
