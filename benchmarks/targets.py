@@ -55,17 +55,16 @@ WHY = {
         "minimisation stalled (see the steps and the convergence flag)."
     ),
     "never_slower": (
-        "The rows below 1 stop at about 1000-5000 triangles, where a single-level solve "
-        "takes only 10-30 ms. The multi-level solve also pays for its coarser level(s) "
-        "(about 100 us of solver overhead per step whatever the level: line search, L-BFGS "
-        "two-loop recursion, spring gradient, progress records) and for its stopping test, "
-        "which measures the volume on the full mesh (65536-81920 triangles, about 1 ms "
-        "each). What was tried: every evaluation is 2-4 times cheaper than before (which "
-        "also made T1 cheaper); the start-level sweep below, after which the solver "
-        "starts at about 1000 triangles (start_triangles) with gtol 1e-5 and a sparse spring "
-        "gradient. The club's own-terminal row stays below 1: its stopping test costs three "
-        "volume evaluations on the 81920-triangle full mesh that the single-level solve on "
-        "5120 triangles never does."
+        "The rows near 1 stop at 4096-5120 triangles, where a single-level solve takes "
+        "about 10-30 ms and a step costs about as much on the coarse level as on the fine "
+        "one: the solver's own work per step (about 200 us: the L-BFGS recursion, the "
+        "preconditioner, the springs, the progress records; see the Display rate "
+        "section) is larger than an evaluation at these sizes, so solving a coarser level "
+        "first saves little and its steps are added. The multi-level solve also measures "
+        "the full mesh (20480-65536 triangles) where the single-level one measures only "
+        "its own terminal mesh. What was tried: compiled evaluations (which made T1 "
+        "cheaper as much as T2), the start-level sweep below, the preconditioner (fewer "
+        "steps on every level), remembering the last evaluation, the fold guard's skip."
     ),
     "speedup_65k": (
         "The single-level solve at 65536 triangles needs about as many steps as the "
@@ -90,8 +89,9 @@ WHY = {
     ),
     "armadillo_load": "Loading and the QEM pyramid are core.meshio / core.pyramid.",
     "armadillo_solve": (
-        "The solve's cost is set by how many levels and steps the bend needs; see the "
-        "per-level steps in the Scale section."
+        "The first solve sets the levels up: the fold guard's interior samples (winding "
+        "numbers, compiled when the kernels are there) and the level's bases; later solves "
+        "reuse them. In the window that set-up runs while the model opens (prepare())."
     ),
     "memory": "",
     "anchor": (
@@ -105,17 +105,15 @@ WHY = {
         "at a sample, and the outcome then reports the result as not converged."
     ),
     "fold_cost": (
-        "Two costs. On the cow bend the guard never acts (det J stays above 0.4, its margin "
-        "is 0.05) and the steps are the same: the whole price is evaluating the penalty at "
-        "its 1200 sample points with every energy evaluation, 160-180 us (Jacobian columns, "
-        "then three np.cross over every sample for the cofactors) against about 90 us for "
-        "the springs and the volume at 1446 triangles. On the kitten bend the guard acts "
-        "(min det J ends at its margin) and the solve needs about 1.5 times the steps; "
-        "without it the kitten ends folded. What was tried, outside the tree (core/folds.py "
-        "is the core's): det J first with written-out products, returning at once when no "
-        "sample is below the margin, the cofactors only at the active samples: the idle "
-        "evaluation 184 -> 78 us, the cow bend 1.8-2.2x -> 1.4x in interleaved runs; the "
-        "kitten bend stays above 2x (2.1-2.5x) because of its extra steps."
+        "The kitten bend is where the guard acts: without it the kitten ends folded (2% of "
+        "the samples) and that folded solve is quick, with it the solve needs more steps "
+        "to stay unfolded (min det J ends at the guard's margin). The solves without the "
+        "guard became 3-4 times faster with the preconditioner, the guarded one less, so "
+        "the ratio grew although both are faster than before. Where the guard never acts "
+        "(the cow bend) it is skipped: after a full evaluation a bound on how far det J "
+        "can move with the nodes answers 0 without evaluating (core/folds.py, "
+        "FoldGuard._inactive), and a preconditioned run stops using its start's "
+        "curvature after 40 steps (core/lbfgs.py), which the guard's curvature outdates."
     ),
     "per_body": (
         "Each body's constraint is normalised by that body's own rest volume, so a small "
