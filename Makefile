@@ -16,12 +16,11 @@ $(PY):
 
 # Re-install only when pyproject.toml (dependencies, the package-dir mapping) or the version
 # in isochor/__init__.py is newer than the stamp. setuptools and wheel let the tests build
-# a wheel without network.
+# a wheel without network. Then the optional kernels are compiled into the user's cache
+# (else the first run compiles them in the background; a failure leaves the NumPy path).
 $(VENV)/.installed: pyproject.toml isochor/__init__.py | $(PY)
 	$(PY) -m pip install --upgrade pip 'setuptools>=68' wheel
 	$(PY) -m pip install -e '.[test,bench,fast]'
-	# compile the optional kernels into the user's cache now (else the first run does,
-	# in the background); a failure only leaves the NumPy path
 	-$(PY) -m isochor.core.kernels --compile
 	touch $@
 
