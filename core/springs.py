@@ -54,34 +54,38 @@ class SpringNetwork:
 
     def __init__(self, edges: np.ndarray, rest_nodes: np.ndarray, stiffness: float = 1.0) -> None:
         self.edges = np.asarray(edges, dtype=np.int64)
+        self._starts = np.ascontiguousarray(self.edges[:, 0])
+        self._ends = np.ascontiguousarray(self.edges[:, 1])
         self.stiffness = float(stiffness)
         self.rest_lengths = self.lengths(rest_nodes)
         self.n_nodes = len(rest_nodes)
         # (nodes, springs): +1 at a spring's end node, -1 at its start node; gathers the
-        # spring forces onto the nodes in one sparse product.
+        # spring forces onto the nodes in one product. Dense up to DENSE_INCIDENCE entries:
+        # there it costs a few microseconds where scipy's sparse product costs ten in call
+        # overhead alone (small lattices, every step).
         s = len(self.edges)
-        self._incidence_t = sp.csr_matrix(
+        self._gather = sp.csr_matrix(
             (
                 np.r_[np.ones(s), -np.ones(s)],
                 (np.r_[self.edges[:, 1], self.edges[:, 0]], np.r_[np.arange(s), np.arange(s)]),
             ),
             shape=(self.n_nodes, s),
         )
-        # up to 10x10x10 nodes a dense copy: its product costs a few microseconds where
-        # scipy's sparse one costs ten in call overhead alone (small lattices, every step)
-        self._incidence_dense = (
-            self._incidence_t.toarray() if self.n_nodes * s <= DENSE_INCIDENCE else None
-        )
-        self._starts = np.ascontiguousarray(self.edges[:, 0])
-        self._ends = np.ascontiguousarray(self.edges[:, 1])
+        if self.n_nodes * s <= DENSE_INCIDENCE:
+            self._gather = self._gather.toarray()
 
     @classmethod
     def for_lattice(cls, shape: tuple[int, int, int], rest_nodes: np.ndarray) -> SpringNetwork:
         return cls(lattice_springs(shape), rest_nodes)
 
+    def _vectors(self, nodes: np.ndarray) -> np.ndarray:
+        """(s, 3) each spring's end minus its start."""
+        nodes = np.asarray(nodes, dtype=np.float64)
+        return nodes.take(self._ends, axis=0) - nodes.take(self._starts, axis=0)
+
     def lengths(self, nodes: np.ndarray) -> np.ndarray:
         """(s,) current spring lengths."""
-        d = nodes[self.edges[:, 1]] - nodes[self.edges[:, 0]]
+        d = self._vectors(nodes)
         return np.sqrt(np.einsum("ij,ij->i", d, d))
 
     def energy(self, nodes: np.ndarray) -> float:
@@ -90,17 +94,14 @@ class SpringNetwork:
 
     def energy_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
         """Energy and its gradient ``(nodes, 3)``."""
-        nodes = np.asarray(nodes, dtype=np.float64)
-        d = nodes.take(self._ends, axis=0) - nodes.take(self._starts, axis=0)
+        d = self._vectors(nodes)
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         stretch = length - self.rest_lengths
         energy = 0.5 * self.stiffness * float(np.einsum("i,i->", stretch, stretch))
         # d|d|/d(end) = d/|d|; a zero-length spring pulls in no defined direction.
         safe = np.where(length > 0, length, 1.0)
         force = (self.stiffness * stretch / safe)[:, None] * d
-        if self._incidence_dense is not None:
-            return energy, self._incidence_dense @ force
-        return energy, self._incidence_t @ force
+        return energy, self._gather @ force
 
     def hessian(self, nodes: np.ndarray) -> np.ndarray:
         """A positive semi-definite approximation of the energy's Hessian at ``nodes``:
@@ -110,7 +111,7 @@ class SpringNetwork:
         difference of its ends (``u`` the unit direction, ``l`` the length, ``L`` the rest
         length); the second term is dropped where it is negative (a compressed spring), so
         the matrix stays a valid preconditioner. Exact for every stretched spring."""
-        d = nodes[self.edges[:, 1]] - nodes[self.edges[:, 0]]
+        d = self._vectors(nodes)
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         safe = np.where(length > 0, length, 1.0)
         u = d / safe[:, None]
