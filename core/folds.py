@@ -301,8 +301,7 @@ class FoldGuard:
 
     def determinants(self, nodes: np.ndarray) -> np.ndarray:
         """(k,) ``det J`` at the sample points for node positions ``nodes`` (nodes, 3)."""
-        c0, c1, c2 = self._columns(nodes)
-        return np.einsum("pa,pa->p", c0, np.cross(c1, c2))
+        return self._evaluate(nodes)[3]
 
     def _inactive(self, nodes: np.ndarray) -> bool:
         """Whether no sample can be within the margin at ``nodes``, proven from the last
@@ -324,9 +323,29 @@ class FoldGuard:
         """Columns and det J at every sample; remembers them for :meth:`_inactive`."""
         c0, c1, c2 = cols = self._columns(nodes)
         dets = np.einsum("pa,pa->p", c0, np.cross(c1, c2))
-        j = float(np.sqrt(np.einsum("bpa,bpa->p", cols, cols).max()))
-        self._ref = (np.array(nodes, dtype=np.float64), float(dets.min()) - self.margin, j)
+        if self.n_points:
+            j = float(np.sqrt(np.einsum("bpa,bpa->p", cols, cols).max()))
+            x = np.array(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+            self._ref = (x, float(dets.min()) - self.margin, j)
         return c0, c1, c2, dets
+
+    def _near(self, nodes: np.ndarray):
+        """``(short, active, cof)`` at the samples within the margin: how far each is below
+        it, which they are, and the cofactor columns of their J (``d det / d column b``,
+        (3, a, 3)); None where none is (or the guard is off)."""
+        if self.n_points == 0 or self.weight == 0:
+            return None
+        nodes = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+        if self._inactive(nodes):  # the usual case: provably nowhere near a fold
+            return None
+        c0, c1, c2, dets = self._evaluate(nodes)
+        short = np.maximum(self.margin - dets, 0.0)
+        active = np.flatnonzero(short > 0)
+        if active.size == 0:  # nowhere near a fold after all
+            return None
+        a0, a1, a2 = c0[active], c1[active], c2[active]
+        cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)])
+        return short[active], active, cof
 
     def value_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
         """The penalty and its exact gradient with respect to the node positions.
@@ -337,23 +356,13 @@ class FoldGuard:
         """
         k = self.n_points
         grad = np.zeros((self.lattice.n_nodes, 3))
-        if k == 0 or self.weight == 0:
+        near = self._near(nodes)
+        if near is None:
             return 0.0, grad
-        nodes = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
-        if self._inactive(nodes):  # the usual case: provably nowhere near a fold
-            return 0.0, grad
-        c0, c1, c2, dets = self._evaluate(nodes)
-        short = np.maximum(self.margin - dets, 0.0)
-        active = np.flatnonzero(short > 0)
-        if active.size == 0:  # the usual case: nowhere near a fold, nothing more to do
-            return 0.0, grad
+        short, active, cof = near
         scale = self.weight / k
-        value = scale * float(np.sum(short[active] ** 3))
-        # d det / d column b = cofactor column b: the cross product of the other two,
-        # needed at the active points only
-        a0, a1, a2 = c0[active], c1[active], c2[active]
-        cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)])  # (3, a, 3)
-        slope = -3.0 * scale * short[active] ** 2  # phi'(det) at the active points
+        value = scale * float(np.sum(short**3))
+        slope = -3.0 * scale * short**2  # phi'(det) at the active points
         w = (slope[None, :, None] * cof).reshape(-1, 3)  # (3 * a, 3)
         g = self._g if active.size == k else self._g[:, active]
         grad += g.reshape(w.shape[0], -1).T @ w
@@ -365,19 +374,11 @@ class FoldGuard:
         margin (positive semi-definite; zero when nowhere near a fold). For the solver's
         preconditioner (:mod:`isochor.core.precondition`)."""
         n = 3 * self.lattice.n_nodes
-        if self.n_points == 0 or self.weight == 0:
+        near = self._near(nodes)
+        if near is None:
             return np.zeros((n, n))
-        nodes = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
-        if self._inactive(nodes):
-            return np.zeros((n, n))
-        c0, c1, c2, dets = self._evaluate(nodes)
-        short = np.maximum(self.margin - dets, 0.0)
-        active = np.flatnonzero(short > 0)
-        if active.size == 0:
-            return np.zeros((n, n))
-        a0, a1, a2 = c0[active], c1[active], c2[active]
-        cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)])  # (3, a, 3)
+        short, active, cof = near
         # grad det_p over (node, axis): sum_b g[b, p, node] cof[b, p, axis]
         rows = np.einsum("bpn,bpa->pna", self._g[:, active], cof).reshape(active.size, n)
-        curvature = 6.0 * self.weight / self.n_points * short[active]  # phi''(det)
+        curvature = 6.0 * self.weight / self.n_points * short  # phi''(det)
         return rows.T @ (curvature[:, None] * rows)
