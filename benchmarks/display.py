@@ -28,7 +28,8 @@ from benchmarks import drag_cases as dc
 from benchmarks.cases import Case
 from benchmarks.scale import ARMADILLO, SCALE_TORI, scale_row
 from benchmarks.tables import table1_row
-from benchmarks.timing import Timing, compiled, kernel_status, numpy_path
+from benchmarks.timing import Timing, compiled, kernel_status
+from isochor.core import kernels
 from isochor.core.examples import example_scenario
 from isochor.core.problem import build, load_model
 from isochor.core.shapes import torus
@@ -76,7 +77,7 @@ def _drag_rows(what: str, problem, repeats: int) -> list[Row]:
     elif not why:
         why = f"solved on {where}: slower than the target"
     if compiled():
-        with numpy_path():
+        with kernels.numpy_path():
             slow = dc.drag(problem, max(1, repeats // 2))
         why += f"; NumPy path {slow.frames.ms()} ms"
     rel_why = f"without the preconditioner {plain.release.ms()} ms"
@@ -91,7 +92,7 @@ def _drag_rows(what: str, problem, repeats: int) -> list[Row]:
 def _multilevel_row(what: str, problem, repeats: int) -> Row:
     """Table 1's T1/T2 for a model's drag: the multi-level solve (measured on the full
     mesh at the end) against a single-level solve on its terminal mesh alone."""
-    x, fixed, _ = dc._dragged(problem)
+    x, fixed, _ = dc.dragged(problem)
     s = problem.surface
     case = Case(what, s.lattice, list(s.levels), x, fixed, problem.options)
     r = table1_row(case, max(1, repeats // 2))
@@ -170,7 +171,7 @@ def run_display(models: Path, repeats: int) -> tuple[list[Row], list[str]]:
         what = f"volume + gradient, {mesh.n_faces} triangles, {row.nodes} nodes"
         why = ""
         if compiled():
-            with numpy_path():
+            with kernels.numpy_path():
                 slow = scale_row(mesh, shape, repeats, reference=False)
             why = f"NumPy path {slow.t_eval.ms(1)} ms"
         rows.append(Row(what, row.t_eval, f"<= {target:g} ms", ms <= target, why))

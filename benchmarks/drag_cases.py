@@ -55,7 +55,7 @@ def model_problem(path: Path):
     return build(Scenario({"path": str(path)}, lattice_nodes=shape), model=model)
 
 
-def _dragged(problem) -> tuple[np.ndarray, np.ndarray, int]:
+def dragged(problem) -> tuple[np.ndarray, np.ndarray, int]:
     """Nodes, fixed coordinates and the dragged row: the problem's first moved node, or
     its top corner moved by a tenth of the lattice size."""
     lattice = problem.surface.lattice
@@ -87,7 +87,7 @@ def drag(problem, repeats: int, frames: int = 10, options=None) -> Drag:
     and makes it again. The first drag (which sets the levels up) is not counted."""
     surface, opts = problem.surface, options or problem.options
     size = surface.lattice.size
-    x, fixed, r = _dragged(problem)
+    x, fixed, r = dragged(problem)
     start = run_to_end(solve(surface, x, fixed, options=opts))
     frame_t, release_t, frames_ok, release_ok, level = [], [], True, True, 0
     for rep in range(repeats + 1):
@@ -115,7 +115,7 @@ def first_record(problem) -> tuple[float, float]:
     leaves it (the first solve after opening: ``build`` and nothing else) and after
     :meth:`EmbeddedSurface.prepare` (what the window's loading thread does)."""
     fresh = EmbeddedSurface(problem.surface.lattice, problem.surface.levels)
-    x, fixed, _ = _dragged(problem)
+    x, fixed, _ = dragged(problem)
     out = []
     for surface in (fresh, EmbeddedSurface(fresh.lattice, fresh.levels).prepare()):
         t0 = time.perf_counter()
@@ -159,7 +159,7 @@ def step_overhead(problem, repeats: int, options=None) -> Timing:
     the evaluations (volume and gradient of the constraints, the fold guard's det J), over
     the steps: the L-BFGS recursion, the line search, the preconditioner, the spring
     energy and the glue. Measured on the problem's fresh solve, ``repeats`` times."""
-    x, fixed, _ = _dragged(problem)
+    x, fixed, _ = dragged(problem)
     opts = options or problem.options
     watched = ((Constraints, "values_and_jacobian"), (FoldGuard, "value_and_gradient"))
     run_to_end(solve(problem.surface, x, fixed, options=opts))  # set-up

@@ -8,7 +8,6 @@ import platform
 import resource
 import time
 from collections.abc import Callable, Mapping
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -143,19 +142,6 @@ def environment(user_blas: Mapping[str, str] | None = None) -> dict[str, str]:
         "platform": platform.platform(),
         "kernels": kernel_status(),
     }
-
-
-@contextmanager
-def numpy_path():
-    """Within: every evaluation takes the NumPy path (what numba's kernels are measured
-    against, in the same run)."""
-    from isochor.core import kernels
-
-    previous = kernels.set_mode("numpy")
-    try:
-        yield
-    finally:
-        kernels.set_mode(previous)
 
 
 def compiled() -> bool:

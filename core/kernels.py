@@ -14,18 +14,15 @@ What they compute (the same numbers as the NumPy path, to rounding; ``tests/test
   (:mod:`core._jitfolds`).
 
 Each returns None when the compiled kernels are not there (yet); the caller then runs its
-NumPy code. The kernels are there once numba is installed (the ``fast`` extra), imports,
-and has compiled them. Compiling takes seconds, so it never happens in the caller: the
-first evaluation of at least ``START_SIZE`` points or faces starts a background thread that
-imports numba and loads the kernels from numba's on-disk cache (:mod:`core._jitbase`; a
-fraction of a second), and the evaluations use NumPy until it is done. On the first run
-(an empty cache) that thread first has a child interpreter compile them into the cache
-(seconds; in this process compiling would hold the GIL for long stretches and slow the
-NumPy evaluations meanwhile); a child that outlives a short program still fills the cache.
-Whatever goes wrong (numba missing, an import or compile error, a failed self-check)
-leaves the NumPy path in place; :func:`status` says why. A compiled
-call that raises switches the kernels off the same way. ``ISOCHOR_NO_JIT=1`` (any value but
-empty or 0) switches them off from the start; :func:`ready` waits for them (tests).
+NumPy code. They are there once numba (the ``fast`` extra) imports and has compiled them.
+Compiling never happens in the caller: :func:`start` (called by ``load_model`` and by the
+first evaluation of ``START_SIZE`` points or faces) loads them in a background thread from
+numba's on-disk cache (:mod:`core._jitbase`), and NumPy serves until that is done. With an
+empty cache a child interpreter compiles them first (:mod:`core._jitcache`). Whatever
+goes wrong (numba missing, an import or compile error, a failed self-check, a compiled call
+that raises) leaves the NumPy path in place; :func:`status` says why.
+``ISOCHOR_NO_JIT=1`` switches them off; :func:`ready` waits for them, :func:`numpy_path`
+forces the NumPy path for a while (tests and benchmarks compare the two).
 
 Large inputs are cut into fixed ranges (``CHUNK`` points, vertices or faces), run on up to
 ``ISOCHOR_JIT_THREADS`` threads (default: the usable cores, at most 4; the kernels release
@@ -44,12 +41,10 @@ from types import SimpleNamespace
 import numpy as np
 
 from . import _jitthreads
+from ._jitcache import ENV_OFF
 
-ENV_OFF = "ISOCHOR_NO_JIT"
 #: evaluations at least this large (points, vertices or faces) start the compilation
 START_SIZE = 4096
-#: seconds a compiling child may take (and its lock counts as held)
-COMPILE_LIMIT = 900
 #: points, vertices or faces per range of work (a multiple of the kernels' block)
 CHUNK = 1 << 14
 _FACE_CHUNK = 1 << 15
@@ -87,6 +82,16 @@ def set_mode(mode: str) -> str:
         raise ValueError(f"mode must be 'auto' or 'numpy', not {mode!r}")
     previous, _state.mode = _state.mode, mode
     return previous
+
+
+@contextlib.contextmanager
+def numpy_path():
+    """Within: every evaluation takes the NumPy path."""
+    previous = set_mode("numpy")
+    try:
+        yield
+    finally:
+        set_mode(previous)
 
 
 def start() -> None:
@@ -163,99 +168,18 @@ def _compile() -> SimpleNamespace:
     return SimpleNamespace(**{fn.__name__: fn for fn, _ in signatures})
 
 
-def _compile_in_child(marker) -> None:
-    """Fill numba's cache from a child interpreter: compiling holds the GIL for much of
-    its seconds, which here would slow the caller's NumPy work. Where the child cannot
-    run, this thread compiles; a child killed by a signal switches the kernels off.
-    One child at a time per cache folder: while another process's child compiles (its
-    lock younger than :data:`COMPILE_LIMIT`), this one waits for the marker, which the
-    child writes itself (so one that outlives a short program still counts)."""
-    import subprocess
-    import time
-
-    lock = marker.with_name(marker.name + ".lock")
-    if not _take(lock):
-        deadline = time.monotonic() + COMPILE_LIMIT
-        while not marker.exists() and _held(lock) and time.monotonic() < deadline:
-            time.sleep(0.5)
-        if marker.exists() or not _take(lock):
-            return
-    cmd = [sys.executable, "-m", __name__, "--compile", str(marker)]
-    env = dict(os.environ, **{ENV_OFF: ""})
-    try:
-        done = subprocess.run(cmd, capture_output=True, timeout=COMPILE_LIMIT, env=env)
-    except subprocess.TimeoutExpired as exc:
-        raise RuntimeError("compiling took more than 15 minutes") from exc
-    except OSError:
-        return
-    finally:
-        lock.unlink(missing_ok=True)
-    if done.returncode < 0:
-        raise RuntimeError(f"the compiler crashed (signal {-done.returncode}) in a child process")
-
-
-def _held(lock) -> bool:
-    """Another process compiles: its lock is there and younger than COMPILE_LIMIT."""
-    import time
-
-    try:
-        return time.time() - lock.stat().st_mtime < COMPILE_LIMIT
-    except OSError:
-        return False
-
-
-def _take(lock) -> bool:
-    """Create the lock (a stale one is replaced); False while another process holds it."""
-    for _ in range(2):
-        try:
-            lock.parent.mkdir(parents=True, exist_ok=True)
-            os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
-            return True
-        except FileExistsError:
-            if _held(lock):
-                return False
-            lock.unlink(missing_ok=True)
-        except OSError:  # an unwritable folder: compile without a lock
-            return True
-    return False
-
-
-def _compile_and_mark(marker: str) -> None:
-    """The child's work (``python -m isochor.core.kernels --compile MARKER``): the marker
-    when it compiled, the lock gone either way (its parent may have ended before it)."""
-    from pathlib import Path
-
-    done = Path(marker)
-    try:
-        _compile()
-        with contextlib.suppress(OSError):
-            done.touch()
-    finally:
-        done.with_name(done.name + ".lock").unlink(missing_ok=True)
-
-
-def _marker():
-    """The file that says the cache holds these kernels, or None without a cache."""
-    from . import _jitbase
-
-    if not (_jitbase.AVAILABLE and _jitbase.CACHE):
-        return None
-    version = f"{_jitbase.numba.__version__}-py{sys.version_info[0]}{sys.version_info[1]}"
-    return _jitbase.cache_dir() / f"compiled-{version}"
-
-
 def _load() -> None:
     """The background thread: import numba, compile (or load from the cache), check."""
     try:
-        from . import _jitbase, _jitcheck
+        from . import _jitbase, _jitcache, _jitcheck
 
         if not _jitbase.AVAILABLE:
             with _lock:
                 _state.status, _state.reason = "off", _jitbase.ERROR
             return
-        marker = _marker()
+        marker = _jitcache.marker()
         if marker is not None and not marker.exists():
-            _compile_in_child(marker)
+            _jitcache.compile_in_child(marker, __name__)
         k = _compile()
         why = _jitcheck.self_check(k, sys.modules[__name__])
         if why:
@@ -412,9 +336,7 @@ def determinants(uvw: np.ndarray, grid: np.ndarray, to_world: np.ndarray, k=None
     return out
 
 
-if __name__ == "__main__" and sys.argv[1:2] == ["--compile"]:  # see _compile_in_child
-    _mark = sys.argv[2] if len(sys.argv) > 2 else _marker()  # (`make venv` gives none)
-    if _mark:
-        _compile_and_mark(_mark)
-    else:
-        _compile()
+if __name__ == "__main__" and sys.argv[1:2] == ["--compile"]:  # see core._jitcache
+    from isochor.core import _jitcache
+
+    _jitcache.compile_and_mark(_compile, sys.argv[2] if len(sys.argv) > 2 else None)

@@ -11,13 +11,12 @@ import os
 import subprocess
 import sys
 import textwrap
-from contextlib import contextmanager
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from isochor.core import kernels
+from isochor.core import _jitcache, kernels
 from isochor.core import lattice as lat_mod
 from isochor.core.examples import example_scenario
 from isochor.core.generators import run_to_end
@@ -26,23 +25,6 @@ from isochor.core.multilevel import solve
 from isochor.core.problem import build
 from isochor.core.shapes import sphere_levels, torus, torus_levels
 from isochor.core.volume import VolumeOperator, signed_volume
-
-
-@pytest.fixture(scope="module")
-def compiled():
-    pytest.importorskip("numba")
-    if os.environ.get(kernels.ENV_OFF, "").strip() not in ("", "0"):
-        pytest.skip(f"{kernels.ENV_OFF} is set")
-    assert kernels.ready(timeout=600), kernels.status()
-
-
-@contextmanager
-def numpy_path():
-    previous = kernels.set_mode("numpy")
-    try:
-        yield
-    finally:
-        kernels.set_mode(previous)
 
 
 def close(a, b, rel=1e-12):
@@ -73,7 +55,7 @@ def test_basis_matches_the_dense_and_factored_numpy_forms(compiled, shape, monke
     assert default.dense is not None and factored.dense is None
     fast_p, fast_g = default.apply(nodes), default.apply_transpose(g)
     assert fast_p.shape == (p, 3) and fast_p.flags.f_contiguous and fast_g.shape == nodes.shape
-    with numpy_path():
+    with kernels.numpy_path():
         for basis in (default, factored):
             assert close(fast_p, basis.apply(nodes))
             assert close(fast_g, basis.apply_transpose(g))
@@ -115,7 +97,7 @@ def test_volume_and_gradient_match_numpy_on_any_triangle_set(compiled, name):
     value, grad = op.value_and_gradient(v, center)
     alone, whole = op(v, center), signed_volume(v, f)
     assert grad.shape == v.shape and grad.flags.f_contiguous
-    with numpy_path():
+    with kernels.numpy_path():
         value0, grad0 = op.value_and_gradient(v, center)
         alone0, whole0 = op(v, center), signed_volume(v, f)
     scale = max(abs(value0), 1e-3 * np.abs(v - center).max() ** 3)
@@ -286,7 +268,7 @@ def test_winding_numbers_match_numpy(compiled):
     pts[:50] = mesh.vertices[:50] * 1.0001  # about half on the surface
     for tri in (mesh.vertices[mesh.faces], mesh.vertices[mesh.faces[::2]]):
         fast = winding_numbers(pts, tri)
-        with numpy_path():
+        with kernels.numpy_path():
             slow = winding_numbers(pts, tri)
         assert close(fast, slow, 1e-12)
     inside = winding_numbers(pts, mesh.vertices[mesh.faces])
@@ -302,7 +284,7 @@ def test_one_compiling_child_at_a_time(tmp_path, monkeypatch):
 
     marker = tmp_path / "compiled-x"
     lock = tmp_path / "compiled-x.lock"
-    assert kernels._take(lock) and not kernels._take(lock)  # held by "another process"
+    assert _jitcache.take(lock) and not _jitcache.take(lock)  # held by "another process"
 
     def compile_again(*args, **kwargs):
         raise AssertionError("a second child compiled while the first held the lock")
@@ -310,9 +292,9 @@ def test_one_compiling_child_at_a_time(tmp_path, monkeypatch):
     monkeypatch.setattr("subprocess.run", compile_again)
     threading.Timer(0.8, marker.touch).start()  # the other process's child finishes
     t0 = time.monotonic()
-    kernels._compile_in_child(marker)
+    _jitcache.compile_in_child(marker, kernels.__name__)
     assert marker.exists() and 0.7 <= time.monotonic() - t0 < 30
 
-    old = time.time() - 2 * kernels.COMPILE_LIMIT  # a lock left by a killed process
+    old = time.time() - 2 * _jitcache.COMPILE_LIMIT  # a lock left by a killed process
     os.utime(lock, (old, old))
-    assert not kernels._held(lock) and kernels._take(lock) and kernels._held(lock)
+    assert not _jitcache.held(lock) and _jitcache.take(lock) and _jitcache.held(lock)
