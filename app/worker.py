@@ -126,12 +126,15 @@ class SolveWorker(QObject):
 
     @contextmanager
     def held(self) -> Iterator[None]:
-        """:meth:`hold` for the duration of a ``with`` block."""
+        """:meth:`hold` for the duration of a ``with`` block; inside a hold already (a
+        frame's paint), it leaves the release to the outer one."""
+        outer = not self.gate.is_set()
         self.hold()
         try:
             yield
         finally:
-            self.release()
+            if not outer:
+                self.release()
 
     def stepping_now(self) -> bool:
         """A solver thread is inside a step (of any job, a stopped one's last included)."""
