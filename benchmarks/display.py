@@ -28,7 +28,7 @@ from benchmarks import drag_cases as dc
 from benchmarks.cases import Case
 from benchmarks.scale import ARMADILLO, SCALE_TORI, scale_row
 from benchmarks.tables import table1_row
-from benchmarks.timing import Timing, compiled, kernel_status
+from benchmarks.timing import Timing, kernel_status
 from isochor.core import kernels
 from isochor.core.examples import example_scenario
 from isochor.core.problem import build, load_model
@@ -76,7 +76,7 @@ def _drag_rows(what: str, problem, repeats: int) -> list[Row]:
         why = f"solved on {where}; without the preconditioner {plain.frames.ms()} ms"
     elif not why:
         why = f"solved on {where}: slower than the target"
-    if compiled():
+    if kernels.active():
         with kernels.numpy_path():
             slow = dc.drag(problem, max(1, repeats // 2))
         why += f"; NumPy path {slow.frames.ms()} ms"
@@ -170,7 +170,7 @@ def run_display(models: Path, repeats: int) -> tuple[list[Row], list[str]]:
         ms = row.t_eval.median * 1e3
         what = f"volume + gradient, {mesh.n_faces} triangles, {row.nodes} nodes"
         why = ""
-        if compiled():
+        if kernels.active():
             with kernels.numpy_path():
                 slow = scale_row(mesh, shape, repeats, reference=False)
             why = f"NumPy path {slow.t_eval.ms(1)} ms"

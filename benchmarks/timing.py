@@ -144,13 +144,6 @@ def environment(user_blas: Mapping[str, str] | None = None) -> dict[str, str]:
     }
 
 
-def compiled() -> bool:
-    """Whether the compiled kernels are in use (so a NumPy-path figure means something)."""
-    from isochor.core import kernels
-
-    return kernels.active()
-
-
 def kernel_status() -> str:
     """Wait for the optional compiled kernels (``core.kernels``) so that every timing
     measures one path, and say which: numba's version, or why the NumPy path runs."""
