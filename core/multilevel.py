@@ -188,7 +188,7 @@ def solve(
         energy_grad, hessian = springs.energy_and_gradient, springs.hessian
 
     lam, sigma = np.zeros(first.count), opts.sigma0
-    warm = _warm_start(constraints, top + 1, x, coords, energy_grad, opts, near)
+    warm = _warm_start(constraints, top + 1, x, coords, energy_grad, opts, near, start_level)
     x_prev = x
     if warm is not None:  # already at the volume: skip the coarse levels whose optimum differs
         start_level, lam = max(start_level, warm[0]), warm[1]
@@ -291,7 +291,7 @@ def solve(
 
 
 def _warm_start(
-    constraints, n, x, coords, energy_grad, opts, near=False
+    constraints, n, x, coords, energy_grad, opts, near=False, first=0
 ) -> tuple[int, np.ndarray] | None:
     """Where to start when ``x`` already meets the goal (a re-solve, a small edit).
 
@@ -303,8 +303,12 @@ def _warm_start(
     ``constraints(k)`` are level k's constraints, of ``n`` levels (the last is the reference,
     the full mesh but in a live preview). With ``near`` the goal need not be met at ``x``:
     the level is the coarsest whose constraints differ from the reference's by at most the
-    tolerance.
+    tolerance. Without ``near``, the levels from ``first`` up are asked first
+    (:func:`_missed`): a drag that changed the volume is seen there, and the full mesh is
+    not evaluated at all.
     """
+    if not near and _missed(constraints, n, x, opts, first):
+        return None
     c_full = constraints(n - 1).values(x)
     if np.max(np.abs(c_full)) > opts.tol_volume and not near:
         return None
@@ -320,3 +324,35 @@ def _warm_start(
     de, dc = coords.reduce(de) / coords.size, coords.reduce(dc) * coords.size
     lam, *_ = np.linalg.lstsq(dc.T, de, rcond=None)
     return k, lam
+
+
+#: a level's deviation proves the goal missed on the full mesh when it is beyond the
+#: tolerance by more than this many times the level's discretisation error (Eq 29)
+MISS_SAFETY = 4.0
+
+
+def _missed(constraints, n, x, opts, first: int) -> bool:
+    """True when a level below the full mesh shows that ``x`` misses the goal there too.
+
+    Level k's constraints differ from the full mesh's by its discretisation error, which
+    Eq 29 estimates from levels k-1 and k (the deviations' difference over the triangle
+    ratio minus one). When ``|c_k|`` exceeds the tolerance by more than ``MISS_SAFETY`` of
+    those estimates, the full mesh misses the goal as well. The levels are asked from
+    ``first`` (at least the second level) up to the one below the full mesh, and the answer
+    comes from the first that proves it; False means not proven (the full mesh decides).
+    Handles' constraints are the same on every level, so their misses show on the first.
+    """
+    below = max(first, 1) - 1
+    if below + 1 >= n - 1:
+        return False
+    previous = constraints(below)
+    c_prev = previous.values(x)
+    for k in range(below + 1, n - 1):
+        cons = constraints(k)
+        c = cons.values(x)
+        ratio = cons.level.triangles / previous.level.triangles
+        error = np.max(np.abs(c - c_prev)) / max(ratio - 1.0, 1e-9)
+        if np.max(np.abs(c)) > opts.tol_volume + MISS_SAFETY * error:
+            return True
+        previous, c_prev = cons, c
+    return False
