@@ -30,7 +30,8 @@ class _Counting:
 
 def _solve(problem, nodes=None):
     records = []
-    gen = multilevel.solve(problem.surface, problem.nodes if nodes is None else nodes, problem.fixed)
+    start = problem.nodes if nodes is None else nodes
+    gen = multilevel.solve(problem.surface, start, problem.fixed)
     return records, run_to_end(gen, records.append)
 
 
