@@ -70,51 +70,73 @@ def bernstein_derivative(degree: int, t: np.ndarray) -> np.ndarray:
 class PointBasis:
     """The FFD basis of a fixed point set: maps node positions to point positions.
 
-    The weight of node (i, j, k) on point p is ``Bu[p, i] * Bv[p, j] * Bw[p, k]``. Small point
-    sets keep the dense ``(p, nodes)`` matrix (``dense``: one matrix product per evaluation);
-    large ones keep only the factored form ``Buv (p, l*m)`` and ``Bw (p, n)``: memory
-    ``p*(l*m + n)`` instead of ``p*l*m*n``. Between ``DENSE_FASTER`` and ``DENSE_LIMIT``
-    entries both are kept and the faster factored form evaluates.
+    The weight of node (i, j, k) on point p is ``Bu[p, i] * Bv[p, j] * Bw[p, k]``. The basis
+    keeps the points' lattice coordinates ``uvw``; :meth:`apply` and :meth:`apply_transpose`
+    run in :mod:`core.kernels` once its compiled kernels are ready, which evaluate the
+    Bernstein polynomials per point (nothing else is stored). The NumPy path (until the
+    kernels are ready, or without numba) builds its tables on first use and keeps them:
+    small point sets the dense ``(p, nodes)`` matrix (``dense``: one matrix product per
+    evaluation); large ones only the factored form ``Buv (p, l*m)`` and ``Bw (p, n)``:
+    memory ``p*(l*m + n)`` instead of ``p*l*m*n``. Between ``DENSE_FASTER`` and
+    ``DENSE_LIMIT`` entries both are kept and the faster factored form evaluates.
 
-    The arrays are stored point-minor (``dense``, ``buv`` and ``bw`` are transposed views of
+    The tables are stored point-minor (``dense``, ``buv`` and ``bw`` are transposed views of
     C-ordered ``(columns, p)`` arrays) and :meth:`apply` returns its ``(p, 3)`` result as a
     view of a coordinate-major ``(3, p)`` buffer (Fortran order): three contiguous rows x, y,
     z, the layout :class:`core.volume.VolumeOperator` works in; :meth:`apply_transpose`
     reads such a gradient without copying. The factored products run over blocks of
     ``BASIS_BLOCK`` points so that their temporaries stay in the CPU cache.
-
-    With the points' lattice coordinates ``uvw`` (what :meth:`Lattice.basis` passes) both
-    products run in :mod:`core.kernels` once its compiled kernels are ready: they evaluate
-    the Bernstein polynomials per point instead of reading the stored basis (same numbers
-    to rounding); until then, or without numba, the NumPy code below.
     """
 
-    def __init__(
-        self, bu: np.ndarray, bv: np.ndarray, bw: np.ndarray, uvw: np.ndarray | None = None
-    ) -> None:
-        p, l = bu.shape
-        m, n = bv.shape[1], bw.shape[1]
-        self.shape = (l, m, n)
-        self.n_points = p
-        buv_t = (bu.T[:, None, :] * bv.T[None, :, :]).reshape(l * m, p)
-        bw_t = np.ascontiguousarray(np.asarray(bw).T)
-        self._dense_t: np.ndarray | None = None
-        self.dense: np.ndarray | None = None
-        self.buv = self.bw = self._buv_t = self._bw_t = None
-        #: (3, p) lattice coordinates for the compiled kernels, or None
-        self.uvw = None if uvw is None else np.ascontiguousarray(np.asarray(uvw, float).T)
-        size = p * l * m * n
-        if size <= DENSE_LIMIT:
-            self._dense_t = (buv_t[:, None, :] * bw_t[None, :, :]).reshape(l * m * n, p)
-            self.dense = self._dense_t.T
-        if size > min(DENSE_LIMIT, DENSE_FASTER):
-            self._buv_t, self._bw_t = buv_t, bw_t
-            self.buv, self.bw = buv_t.T, bw_t.T
+    def __init__(self, uvw: np.ndarray, shape: tuple[int, int, int]) -> None:
+        uvw = np.asarray(uvw, dtype=np.float64).reshape(-1, 3)
+        self.shape = tuple(int(d) for d in shape)
+        self.n_points = len(uvw)
+        #: (3, p) lattice coordinates, what the compiled kernels read
+        self.uvw = np.ascontiguousarray(uvw.T)
+        size = self.n_points * int(np.prod(self.shape))
+        self._dense, self._factored = size <= DENSE_LIMIT, size > min(DENSE_LIMIT, DENSE_FASTER)
+        #: (dense_t, buv_t, bw_t), built on the NumPy path's first use (see the class)
+        self._tables: tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None] | None
+        self._tables = None
+
+    def _built(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+        tables = self._tables  # one tuple: another thread may build it too, never half
+        if tables is None:
+            l, m, n = self.shape
+            p = self.n_points
+            bu, bv, bw = (bernstein(d - 1, self.uvw[c]) for c, d in enumerate(self.shape))
+            buv_t = (bu.T[:, None, :] * bv.T[None, :, :]).reshape(l * m, p)
+            bw_t = np.ascontiguousarray(bw.T)
+            dense_t = None
+            if self._dense:
+                dense_t = (buv_t[:, None, :] * bw_t[None, :, :]).reshape(l * m * n, p)
+            factored = (buv_t, bw_t) if self._factored else (None, None)
+            tables = self._tables = (dense_t, *factored)
+        return tables
+
+    @property
+    def dense(self) -> np.ndarray | None:
+        """(p, nodes) the dense basis matrix of a small point set, else None."""
+        dense_t = self._built()[0]
+        return None if dense_t is None else dense_t.T
+
+    @property
+    def buv(self) -> np.ndarray | None:
+        """(p, l*m) the factored form's first factor of a large point set, else None."""
+        buv_t = self._built()[1]
+        return None if buv_t is None else buv_t.T
+
+    @property
+    def bw(self) -> np.ndarray | None:
+        """(p, n) the factored form's second factor of a large point set, else None."""
+        bw_t = self._built()[2]
+        return None if bw_t is None else bw_t.T
 
     @property
     def nbytes(self) -> int:
-        """Memory held by the basis, in bytes."""
-        held = [self._dense_t, self._buv_t, self._bw_t, self.uvw]
+        """Memory held by the basis, in bytes (the NumPy path's tables once built)."""
+        held = [*(self._tables or ()), self.uvw]
         return int(sum(a.nbytes for a in held if a is not None))
 
     def apply(self, nodes: np.ndarray) -> np.ndarray:
@@ -122,12 +144,12 @@ class PointBasis:
 
         The result is a Fortran-ordered view of a ``(3, p)`` array (see the class notes)."""
         nodes = np.asarray(nodes, dtype=np.float64)
-        if self.uvw is not None:
-            out = kernels.apply(self.uvw, nodes, self.shape)
-            if out is not None:
-                return out.T
-        if self._buv_t is None:
-            return (nodes.T @ self._dense_t).T
+        out = kernels.apply(self.uvw, nodes, self.shape)
+        if out is not None:
+            return out.T
+        dense_t, buv_t, bw_t = self._built()
+        if buv_t is None:
+            return (nodes.T @ dense_t).T
         l, m, n = self.shape
         lm, p = l * m, self.n_points
         # x_t[(k, c), ij] = nodes[(ij, k), c]
@@ -138,20 +160,20 @@ class PointBasis:
         for s in range(0, p, width):
             t = min(s + width, p)
             yb = y if t - s == width else y[:, :, : t - s]
-            np.matmul(x_t, self._buv_t[:, s:t], out=yb.reshape(3 * n, t - s))
-            yb *= self._bw_t[:, None, s:t]
+            np.matmul(x_t, buv_t[:, s:t], out=yb.reshape(3 * n, t - s))
+            yb *= bw_t[:, None, s:t]
             yb.sum(axis=0, out=out[:, s:t])
         return out.T
 
     def apply_transpose(self, point_values: np.ndarray) -> np.ndarray:
         """Chain rule (paper Eq 11): per-point ``(p, 3)`` -> per-node ``(l*m*n, 3)``."""
         v = np.asarray(point_values, dtype=np.float64).T  # (3, p), contiguous if Fortran
-        if self.uvw is not None:
-            out = kernels.apply_transpose(self.uvw, v, self.shape)
-            if out is not None:
-                return out
-        if self._buv_t is None:
-            return np.ascontiguousarray((v @ self._dense_t.T).T)
+        out = kernels.apply_transpose(self.uvw, v, self.shape)
+        if out is not None:
+            return out
+        dense_t, buv_t, bw_t = self._built()
+        if buv_t is None:
+            return np.ascontiguousarray((v @ dense_t.T).T)
         l, m, n = self.shape
         lm, p = l * m, self.n_points
         acc = np.zeros((3 * n, lm))
@@ -160,8 +182,8 @@ class PointBasis:
         for s in range(0, p, width):
             t = min(s + width, p)
             zb = z if t - s == width else z[:, :, : t - s]
-            np.multiply(self._bw_t[:, None, s:t], v[None, :, s:t], out=zb)
-            acc += zb.reshape(3 * n, t - s) @ self._buv_t[:, s:t].T
+            np.multiply(bw_t[:, None, s:t], v[None, :, s:t], out=zb)
+            acc += zb.reshape(3 * n, t - s) @ buv_t[:, s:t].T
         # acc[(k, c), ij] -> out[(ij, k), c]
         return np.ascontiguousarray(acc.reshape(n, 3, lm).transpose(2, 0, 1)).reshape(lm * n, 3)
 
@@ -267,14 +289,7 @@ class Lattice:
 
     def basis(self, points: np.ndarray) -> PointBasis:
         """The basis of a fixed point set; compute once, apply to many node positions."""
-        uvw = self.to_parameters(points)
-        l, m, n = self.shape
-        return PointBasis(
-            bernstein(l - 1, uvw[:, 0]),
-            bernstein(m - 1, uvw[:, 1]),
-            bernstein(n - 1, uvw[:, 2]),
-            uvw,
-        )
+        return PointBasis(self.to_parameters(points), self.shape)
 
     def deform(self, points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """(p, 3) points mapped by the FFD with node positions ``nodes`` (nodes, 3)."""

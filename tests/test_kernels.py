@@ -62,6 +62,22 @@ def test_basis_matches_the_dense_and_factored_numpy_forms(compiled, shape, monke
             assert close(fast_g, basis.apply_transpose(np.ascontiguousarray(g)))
 
 
+def test_a_basis_holds_only_its_coordinates_while_the_kernels_evaluate(compiled):
+    """The NumPy path's tables are built on its first use, not before: the kernels read
+    the lattice coordinates alone (24 bytes a point)."""
+    rng = np.random.default_rng(5)
+    lat = skewed_lattice((5, 5, 5))
+    points = lat.origin + rng.uniform(size=(20000, 3)) @ lat.axes
+    nodes = lat.rest_nodes + rng.normal(scale=0.2, size=(lat.n_nodes, 3))
+    basis = lat.basis(points)
+    fast = basis.apply(nodes)
+    basis.apply_transpose(fast)
+    assert basis.nbytes == 20000 * 3 * 8
+    with kernels.numpy_path():
+        assert close(fast, basis.apply(nodes))
+    assert basis.nbytes > 20000 * 30 * 8  # the factored tables, kept from now on
+
+
 def _meshes():
     """Closed, open, badly wound, non-manifold, a vertex of high degree, a triangle soup."""
     rng = np.random.default_rng(11)
