@@ -34,7 +34,14 @@ from .generators import relay
 from .handles import Handle, HandleSystem, handle_rows
 from .outcome import outcome, preview
 from .records import LevelStats, Progress, SolveResult, frozen_copy
-from .solver import Coordinates, LevelProblem, SolverOptions, augmented_lagrangian, worst
+from .solver import (
+    Coordinates,
+    Curvatures,
+    LevelProblem,
+    SolverOptions,
+    augmented_lagrangian,
+    worst,
+)
 from .surface import FOLD_MARGIN, EmbeddedSurface, live_level
 from .symmetry import Mirror
 
@@ -186,6 +193,7 @@ def solve(
             return springs.hessian(x) + guard.gauss_newton(x) * size**2
     else:
         energy_grad, hessian = springs.energy_and_gradient, springs.hessian
+    curvatures = Curvatures(hessian, coords)  # the levels' preconditioner shares it
 
     lam, sigma = np.zeros(first.count), opts.sigma0
     warm = _warm_start(constraints, top + 1, x, coords, energy_grad, opts, near, start_level)
@@ -210,7 +218,7 @@ def solve(
         t_level = time.perf_counter()
         cons = constraints(k)
         problem = LevelProblem(
-            x, coords, energy_grad, cons.values_and_jacobian, center, size, hessian
+            x, coords, energy_grad, cons.values_and_jacobian, center, size, curvatures
         )
         run = augmented_lagrangian(problem, problem.to_y(x), lam, sigma, opts)
 

@@ -28,7 +28,7 @@ import scipy.sparse as sp
 from .defaults import TOL_NODES, TOL_VOLUME
 from .generators import relay
 from .lbfgs import Objective, lbfgs
-from .precondition import Preconditioner
+from .precondition import Curvature, Preconditioner
 
 
 @dataclass(frozen=True)
@@ -75,10 +75,35 @@ class SolverOptions:
     live_triangles: int = 6000
 
 
-#: the preconditioner's curvature is taken again once a level's variables moved this far
+#: the preconditioner's curvature is taken again once the variables moved this far
 #: (/ object size) from where it was taken; a drag's frame and a level that starts near its
 #: optimum keep one
 CURVATURE_MOVE = 1e-2
+
+
+class Curvatures:
+    """The preconditioner's curvature (:class:`~isochor.core.precondition.Curvature`) of
+    one solve, shared by its levels (the springs and the fold guard are the same on every
+    level; each level adds its own constraints): taken at the first variables asked for,
+    again once they moved more than :data:`CURVATURE_MOVE` from there.
+
+    Parameters
+    ----------
+    hessian : ``X -> (3n, 3n)`` the energy's Hessian over the node coordinates
+    coords : the solve's :class:`Coordinates`
+    """
+
+    def __init__(self, hessian, coords: Coordinates) -> None:
+        self.hessian, self.coords = hessian, coords
+        self._y: np.ndarray | None = None
+        self._curvature: Curvature | None = None
+
+    def at(self, y: np.ndarray, nodes) -> Curvature:
+        """The curvature for variables ``y``; ``nodes()`` gives their node positions."""
+        if self._curvature is None or np.max(np.abs(y - self._y)) > CURVATURE_MOVE:
+            self._curvature = Curvature(self.coords.restrict(self.hessian(nodes())))
+            self._y = np.array(y)
+        return self._curvature
 
 
 @dataclass(frozen=True)
@@ -187,29 +212,34 @@ class LevelProblem:
     constraint_grad : ``X -> (c, dc/dX)``, ``(m,)`` and ``(m, n, 3)``, already scale-free
         (see :mod:`isochor.core.constraints`)
     center, size : the normalisation of lengths
+    hessian : ``X -> (3n, 3n)`` the energy's Hessian over the node coordinates, or the
+        :class:`Curvatures` the levels of a solve share; None: no preconditioner
     """
 
     def __init__(self, nodes, free, energy_grad, constraint_grad, center, size, hessian=None):
         self.template = np.array(nodes, dtype=np.float64)
         self.coords = free if isinstance(free, Coordinates) else Coordinates(free, center, size)
         self.energy_grad, self.constraint_grad = energy_grad, constraint_grad
-        self.hessian, self._curvature, self._curvature_y = hessian, None, None
+        if hessian is not None and not isinstance(hessian, Curvatures):
+            hessian = Curvatures(hessian, self.coords)
+        self.curvatures: Curvatures | None = hessian
+        self._preconditioner: Preconditioner | None = None
         self._last: tuple[bytes, tuple] | None = None  # (y's bytes, its terms)
         self.size = self.coords.size
 
     def preconditioner(self, y: np.ndarray, sigma: float):
         """``v -> M^-1 v``, the approximate inverse Hessian of the augmented Lagrangian
-        (:mod:`isochor.core.precondition`) with the curvature taken at the first ``y``
-        asked for, taken again where the variables moved by more than
-        :data:`CURVATURE_MOVE` since, or None without an energy Hessian."""
-        if self.hessian is None:
+        (:mod:`isochor.core.precondition`): the shared curvature (see :class:`Curvatures`)
+        with this level's constraint gradients where it asked first since the curvature was
+        taken; None without an energy Hessian."""
+        if self.curvatures is None:
             return None
-        if self._curvature is None or np.max(np.abs(y - self._curvature_y)) > CURVATURE_MOVE:
+        curvature = self.curvatures.at(y, lambda: self.to_nodes(y))
+        pre = self._preconditioner
+        if pre is None or pre.curvature is not curvature:
             jac = self.terms(y)[3]  # (where the run starts: its first evaluation, memoised)
-            x = self.to_nodes(y)
-            self._curvature = Preconditioner(self.coords.restrict(self.hessian(x)), jac)
-            self._curvature_y = np.array(y)
-        return self._curvature.at(sigma)
+            pre = self._preconditioner = Preconditioner(curvature, jac)
+        return pre.at(sigma)
 
     def to_y(self, nodes: np.ndarray) -> np.ndarray:
         return self.coords.to_y(nodes)
