@@ -38,10 +38,12 @@ def _pair(t, w, d, low, b, db):
 
 
 @njit(**KERNEL)
-def determinant_range(uvw, x, to_world, out, start, stop):
+def determinant_range(uvw, x, to_world, out, frobenius, start, stop):
     """``out[start:stop]``: det J at the points ``start..stop`` of the (3, p) lattice
     coordinates ``uvw``, for the (l, m, n, 3) nodes ``x``; ``to_world`` (3, 3) is
-    ``inv(axes).T``."""
+    ``inv(axes).T``. Unless ``frobenius`` is empty, ``frobenius[start:stop]`` gets
+    ``|J|_F^2`` there too (the fold guard's bound)."""
+    squares = len(frobenius) > 0
     l, m, n = x.shape[0], x.shape[1], x.shape[2]
     low = np.empty((10, BLOCK))
     bu, dbu = np.empty((l, BLOCK)), np.empty((l, BLOCK))
@@ -106,3 +108,8 @@ def determinant_range(uvw, x, to_world, out, start, stop):
                 + c01 * (c12 * c20 - c10 * c22)
                 + c02 * (c10 * c21 - c11 * c20)
             )
+            if squares:
+                frobenius[s + q] = (
+                    c00 * c00 + c01 * c01 + c02 * c02 + c10 * c10 + c11 * c11
+                    + c12 * c12 + c20 * c20 + c21 * c21 + c22 * c22
+                )  # fmt: skip

@@ -285,6 +285,8 @@ class FoldGuard:
                 g[b, s : s + width] = (inv[b, 0] * d[0] + inv[b, 1] * d[1] + inv[b, 2] * d[2]).T
         #: (nodes,) the largest |grad B_node| over the samples (see :meth:`_inactive`)
         self._reach = np.sqrt(np.einsum("bpn,bpn->pn", g, g)).max(axis=0) if k else np.zeros(0)
+        #: (3, k) the samples' lattice coordinates and inv(axes).T: det J by the kernels
+        self._uvw_t, self._to_world = uvw_t, inv.T
         #: (nodes at the last full evaluation, its min det J - margin, its max |J|_F)
         self._ref: tuple[np.ndarray, float, float] | None = None
 
@@ -293,15 +295,16 @@ class FoldGuard:
         """Memory held by the precomputed basis gradients, in bytes."""
         return int(self._g.nbytes)
 
-    def _columns(self, nodes: np.ndarray) -> np.ndarray:
-        """(3, k, 3) columns of the Jacobians: ``out[b, p, a] = J_p[a, b]``."""
+    def _columns(self, nodes: np.ndarray, rows=slice(None)) -> np.ndarray:
+        """(3, k, 3) columns of the Jacobians (at the samples ``rows``):
+        ``out[b, p, a] = J_p[a, b]``."""
         x = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
-        k = self.n_points
-        return (self._g.reshape(3 * k, -1) @ x).reshape(3, k, 3)
+        g = self._g[:, rows]
+        return (g.reshape(-1, g.shape[2]) @ x).reshape(3, -1, 3)
 
     def determinants(self, nodes: np.ndarray) -> np.ndarray:
         """(k,) ``det J`` at the sample points for node positions ``nodes`` (nodes, 3)."""
-        return self._evaluate(nodes)[3]
+        return self._evaluate(np.asarray(nodes, dtype=np.float64))
 
     def _inactive(self, nodes: np.ndarray) -> bool:
         """Whether no sample can be within the margin at ``nodes``, proven from the last
@@ -319,15 +322,25 @@ class FoldGuard:
         e = float(np.sqrt(np.einsum("ij,ij->i", nodes - x0, nodes - x0)) @ self._reach)
         return (j + e) ** 3 - j**3 < slack
 
-    def _evaluate(self, nodes: np.ndarray):
-        """Columns and det J at every sample; remembers them for :meth:`_inactive`."""
-        c0, c1, c2 = cols = self._columns(nodes)
-        dets = np.einsum("pa,pa->p", c0, np.cross(c1, c2))
+    def _evaluate(self, nodes: np.ndarray) -> np.ndarray:
+        """det J at every sample; remembers the slack and ``max |J|_F`` for
+        :meth:`_inactive`. The compiled kernels evaluate the Bernstein polynomials per
+        sample (:func:`isochor.core.kernels.determinants`); the NumPy path multiplies the
+        stored basis gradients (``3 k nodes`` numbers read each time)."""
+        x = np.array(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+        l, m, n = self.lattice.shape
+        fast = kernels.determinants(
+            self._uvw_t, x.reshape(l, m, n, 3), self._to_world, frobenius=True
+        )
+        if fast is not None:
+            dets, squares = fast
+        else:
+            c0, c1, c2 = cols = self._columns(x)
+            dets = np.einsum("pa,pa->p", c0, np.cross(c1, c2))
+            squares = np.einsum("bpa,bpa->p", cols, cols)
         if self.n_points:
-            j = float(np.sqrt(np.einsum("bpa,bpa->p", cols, cols).max()))
-            x = np.array(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
-            self._ref = (x, float(dets.min()) - self.margin, j)
-        return c0, c1, c2, dets
+            self._ref = (x, float(dets.min()) - self.margin, float(np.sqrt(squares.max())))
+        return dets
 
     def _near(self, nodes: np.ndarray):
         """``(short, active, cof)`` at the samples within the margin: how far each is below
@@ -338,12 +351,11 @@ class FoldGuard:
         nodes = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
         if self._inactive(nodes):  # the usual case: provably nowhere near a fold
             return None
-        c0, c1, c2, dets = self._evaluate(nodes)
-        short = np.maximum(self.margin - dets, 0.0)
+        short = np.maximum(self.margin - self._evaluate(nodes), 0.0)
         active = np.flatnonzero(short > 0)
         if active.size == 0:  # nowhere near a fold after all
             return None
-        a0, a1, a2 = c0[active], c1[active], c2[active]
+        a0, a1, a2 = self._columns(nodes, active if active.size < self.n_points else slice(None))
         cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)])
         return short[active], active, cof
 

@@ -160,7 +160,7 @@ def _compile() -> SimpleNamespace:
         (_jitvolume.fan_gradient_range, f8(r2, f8, f8, f8, l1, s1, w2, i8, i8)),
         (_jitvolume.face_volume_range, f8(r2, f8, f8, f8, l1, l1, l1, i8, i8)),
         (_jitvolume.winding_range, t.void(r2, r3, w1, i8, i8)),
-        (_jitfolds.determinant_range, t.void(r2, r4, r2, w1, i8, i8)),
+        (_jitfolds.determinant_range, t.void(r2, r4, r2, w1, w1, i8, i8)),
     ]
     for fn, sig in signatures:
         fn.compile(sig)
@@ -207,9 +207,9 @@ def _chunks(size: int, chunk: int = CHUNK) -> list[tuple[int, int]]:
 def _guard(fn):
     """Run a compiled call; on any error switch the kernels off and return None."""
 
-    def wrapped(*args):
+    def wrapped(*args, **kwargs):
         try:
-            return fn(*args)
+            return fn(*args, **kwargs)
         except Exception as exc:
             _fail(f"{fn.__name__}: {type(exc).__name__}: {exc}")
             return None
@@ -321,9 +321,12 @@ def winding_numbers(points: np.ndarray, corners: np.ndarray, k=None) -> np.ndarr
 
 
 @_guard
-def determinants(uvw: np.ndarray, grid: np.ndarray, to_world: np.ndarray, k=None):
+def determinants(
+    uvw: np.ndarray, grid: np.ndarray, to_world: np.ndarray, k=None, frobenius: bool = False
+):
     """(p,) det J at the (3, p) lattice coordinates for the (l, m, n, 3) nodes ``grid``
-    (``to_world``: ``inv(axes).T``); None: no kernels."""
+    (``to_world``: ``inv(axes).T``), with ``frobenius`` also (p,) ``|J|_F^2``; None: no
+    kernels."""
     k = k or _kernels(uvw.shape[1])
     if k is None:
         return None
@@ -331,9 +334,14 @@ def determinants(uvw: np.ndarray, grid: np.ndarray, to_world: np.ndarray, k=None
     x = np.ascontiguousarray(grid, dtype=np.float64)
     t = np.ascontiguousarray(to_world, dtype=np.float64)
     out = np.empty(uvw.shape[1])
+    norms = np.empty(uvw.shape[1] if frobenius else 0)
     ranges = _chunks(uvw.shape[1])
-    _jitthreads.run(lambda i: k.determinant_range(uvw, x, t, out, *ranges[i]), len(ranges))
-    return out
+
+    def task(i):
+        k.determinant_range(uvw, x, t, out, norms, *ranges[i])
+
+    _jitthreads.run(task, len(ranges))
+    return (out, norms) if frobenius else out
 
 
 if __name__ == "__main__" and sys.argv[1:2] == ["--compile"]:  # see core._jitcache

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from isochor.core import kernels
 from isochor.core.bodies import winding_numbers
 from isochor.core.folds import (
     FoldCheck,
@@ -63,7 +64,7 @@ def test_blocked_determinants_match_across_blocks_and_shapes(shape, evaluation_p
     assert np.allclose(jacobian_determinants(lattice, points, nodes), expected, atol=1e-10)
 
 
-def test_guard_gradient_matches_central_differences():
+def test_guard_gradient_matches_central_differences(evaluation_path):
     rng = np.random.default_rng(5)
     lattice = _rotated_lattice((3, 4, 2))
     points = _inside_frame(lattice, 60, seed=6)
@@ -79,6 +80,25 @@ def test_guard_gradient_matches_central_differences():
     dets = guard.determinants(nodes)
     by_hand = 2.5 / len(points) * np.sum(np.maximum(0.8 - dets, 0) ** 3)
     assert value == pytest.approx(by_hand, rel=1e-12)
+
+
+def test_guard_is_the_same_on_both_evaluation_paths(compiled):
+    """The compiled det J (the Bernstein polynomials per sample) and the NumPy one (the
+    stored basis gradients) give the guard the same value, gradient and curvature."""
+    rng = np.random.default_rng(8)
+    lattice = _rotated_lattice((5, 4, 3))
+    points = _inside_frame(lattice, 3000, seed=9)
+    nodes = lattice.rest_nodes + rng.normal(scale=0.3, size=(lattice.n_nodes, 3))
+    fast = FoldGuard(lattice, points, margin=0.6, weight=2.0)
+    value, grad = fast.value_and_gradient(nodes)
+    with kernels.numpy_path():
+        slow = FoldGuard(lattice, points, margin=0.6, weight=2.0)
+        value0, grad0 = slow.value_and_gradient(nodes)
+        gn0, ref0 = slow.gauss_newton(nodes), slow._ref
+    assert 0 < value == pytest.approx(value0, rel=1e-12)
+    np.testing.assert_allclose(grad, grad0, rtol=1e-10, atol=1e-12 * np.abs(grad0).max())
+    np.testing.assert_allclose(fast.gauss_newton(nodes), gn0, rtol=1e-9, atol=1e-12)
+    assert fast._ref[1:] == pytest.approx(ref0[1:], rel=1e-12)  # the skip's slack and |J|
 
 
 def test_guard_is_zero_at_rest():
@@ -188,7 +208,7 @@ def test_blocked_winding_numbers_are_one_inside_and_zero_outside():
     np.testing.assert_allclose(w, np.where(np.linalg.norm(points, axis=1) < 1, 1.0, 0.0), atol=1e-9)
 
 
-def test_guard_skips_only_what_it_can_prove_is_above_the_margin():
+def test_guard_skips_only_what_it_can_prove_is_above_the_margin(evaluation_path):
     """After a full evaluation the guard answers 0 without evaluating while its bound shows
     every sample above the margin: over random walks of the nodes, every answer equals a
     fresh guard's (which has nothing to skip from), and the skip is taken for small moves."""
