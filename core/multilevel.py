@@ -193,7 +193,14 @@ def solve(
             return springs.hessian(x) + guard.gauss_newton(x) * size**2
     else:
         energy_grad, hessian = springs.energy_and_gradient, springs.hessian
-    curvatures = Curvatures(hessian, coords)  # the levels' preconditioner shares it
+    # The preconditioner's curvature, shared by the levels. A solve near the one before (a
+    # drag's frame, its release) takes it from there while the nodes stayed near (a new
+    # factorisation costs 50 ms at 8x8x8); any other solve takes its own, so that its
+    # result never depends on what was solved before.
+    margin = guard.margin if goal.fold_guard else None
+    curvatures = surface.shared(
+        ("curvatures", coords.key, margin), lambda: Curvatures(hessian, coords), reuse=near
+    )
 
     lam, sigma = np.zeros(first.count), opts.sigma0
     warm = _warm_start(constraints, top + 1, x, coords, energy_grad, opts, near, start_level)

@@ -95,15 +95,17 @@ class Curvatures:
 
     def __init__(self, hessian, coords: Coordinates) -> None:
         self.hessian, self.coords = hessian, coords
-        self._y: np.ndarray | None = None
-        self._curvature: Curvature | None = None
+        #: (y, its curvature): one tuple, so that a solver thread that is being stopped
+        #: and the next solve's thread never see half of an update
+        self._taken: tuple[np.ndarray, Curvature] | None = None
 
     def at(self, y: np.ndarray, nodes) -> Curvature:
         """The curvature for variables ``y``; ``nodes()`` gives their node positions."""
-        if self._curvature is None or np.max(np.abs(y - self._y)) > CURVATURE_MOVE:
-            self._curvature = Curvature(self.coords.restrict(self.hessian(nodes())))
-            self._y = np.array(y)
-        return self._curvature
+        taken = self._taken
+        if taken is None or np.max(np.abs(y - taken[0])) > CURVATURE_MOVE:
+            taken = (np.array(y), Curvature(self.coords.restrict(self.hessian(nodes()))))
+            self._taken = taken
+        return taken[1]
 
 
 @dataclass(frozen=True)
@@ -141,6 +143,14 @@ class Coordinates:
         self.dst, self.src, self.sign, self.offset = ties or (empty, empty, 0.0, 0.0)
         self._columns = np.flatnonzero(self.free.ravel())
         self.count = len(self._columns)
+
+    @cached_property
+    def key(self) -> tuple:
+        """What the variables are: equal keys, the same variables (see :class:`Curvatures`)."""
+        ties = (self.dst, self.src, self.sign, self.offset)
+        return (self.free.tobytes(), self.center.tobytes(), self.size) + tuple(
+            np.asarray(t, dtype=np.float64).tobytes() for t in ties
+        )
 
     @cached_property
     def matrix(self) -> sp.csr_matrix:

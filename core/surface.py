@@ -112,6 +112,17 @@ class EmbeddedSurface:
             self._cache[key] = FoldGuard(self.lattice, points, margin, FOLD_WEIGHT / margin**3)
         return self._cache[key]
 
+    def shared(self, key, make, reuse: bool = True):
+        """The object the solves on this surface share under ``key`` (the last one made):
+        ``make()`` when the key differs from the last one's (or without ``reuse``; it is
+        then shared from now on). A drag's frames and the solve when it ends share the
+        preconditioner's curvature this way (:class:`isochor.core.solver.Curvatures`)."""
+        last = self._cache.get("shared")  # one tuple: threads swap it whole
+        if last is None or last[0] != key or not reuse:
+            last = (key, make())
+            self._cache["shared"] = last
+        return last[1]
+
     @cached_property
     def rest_volume(self) -> float:
         """Volume of the full-resolution mesh as given (the FFD of the rest lattice is the

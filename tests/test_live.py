@@ -230,3 +230,38 @@ def test_prepare_sets_up_what_the_first_solve_needs(fine_torus):
     assert {"springs", "bodies", "interior", "fold_check"} <= set(surface.__dict__)
     full = len(surface.levels) - 1
     assert full in surface._cache and live_level(surface, opts.live_triangles) in surface._cache
+
+
+def test_a_drag_shares_the_curvature_and_a_fresh_solve_takes_its_own(
+    fine_torus, monkeypatch, evaluation_path
+):
+    """A drag's frames and its release take the preconditioner's curvature from the solve
+    before while the nodes stay near; a fresh solve makes its own, so solving the same
+    edit again gives the same nodes whatever was solved in between. (On one evaluation
+    path throughout: the compiled one rounds differently.)"""
+    from isochor.core import solver
+
+    made = []
+    real = solver.Curvature
+    monkeypatch.setattr(solver, "Curvature", lambda h: made.append(1) or real(h))
+    problem, opts = fine_torus
+    surface = EmbeddedSurface(problem.surface.lattice, problem.surface.levels)
+    x, fixed, r = _dragged(problem)
+    first = run_to_end(solve(surface, x, fixed, options=opts))
+    assert first.converged and made
+    result, before = first, len(made)
+    for _ in range(5):  # frames of 0.1% of the size: all near the curvature taken
+        nodes = np.array(result.nodes)
+        nodes[r] += 1e-3 * surface.lattice.size
+        result = run_to_end(solve(surface, nodes, fixed, options=opts, live=True))
+        assert result.converged
+    release = run_to_end(solve(surface, np.array(result.nodes), fixed, options=opts, near=True))
+    assert release.converged and len(made) == before
+    edit = np.array(release.nodes)  # a new edit, near where the drag's curvature was taken
+    edit[r] += 1e-4 * surface.lattice.size
+    again = run_to_end(solve(surface, edit, fixed, options=opts))
+    assert len(made) > before
+    elsewhere = EmbeddedSurface(surface.lattice, surface.levels)  # nothing solved before
+    assert np.array_equal(
+        again.nodes, run_to_end(solve(elsewhere, edit, fixed, options=opts)).nodes
+    )
