@@ -173,14 +173,22 @@ def step_overhead(problem, repeats: int, options=None) -> Timing:
     return Timing(tuple(per_step))
 
 
+def dense_problem(problem, n: int = 8):
+    """The problem's model on an n x n x n lattice, its bottom layer pinned, nothing moved
+    (what :func:`drag` and :func:`dense_drag` take)."""
+    scenario = problem.scenario.with_(lattice_nodes=(n, n, n), moves=(), pins=(), axis_pins=())
+    dense = build(scenario, model=problem.model)
+    fixed = dense.fixed.copy()
+    fixed[dense.surface.lattice.grid_parameters()[:, 1] == 0] = True
+    return replace(dense, fixed=fixed)
+
+
 def dense_drag(problem) -> tuple[float, bool, str]:
     """8x8x8 on the model, bottom layer pinned, one top corner dragged by 15% of the size
     (one solve): seconds, converged, message."""
-    scenario = problem.scenario.with_(lattice_nodes=(8, 8, 8), moves=(), pins=(), axis_pins=())
-    dense = build(scenario, model=problem.model)
+    dense = dense_problem(problem)
     lattice = dense.surface.lattice
     x, fixed = dense.nodes.copy(), dense.fixed.copy()
-    fixed[lattice.grid_parameters()[:, 1] == 0] = True
     r = lattice.index(7, 7, 7)
     x[r] += 0.15 * lattice.size
     fixed[r] = True
