@@ -250,7 +250,9 @@ class FoldGuard:
     precomputed: ``G[b, p, node] = dB_node(x_p) / dx_b`` (memory ``3 * k * nodes`` float64, 72 MB
     for 3000 points and 1000 nodes). Then column b of ``J_p`` is ``G[b] @ X`` and
     ``dP/dX[node, a] = sum_p sum_b phi'(det_p) cof_p[a, b] G[b, p, node]``, two matrix
-    products per evaluation.
+    products per evaluation, over the samples within the margin only: det J at every
+    sample comes from the compiled kernels when they are ready (the NumPy path takes it
+    from ``G`` too).
 
     Parameters
     ----------

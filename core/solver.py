@@ -84,8 +84,9 @@ CURVATURE_MOVE = 1e-2
 class Curvatures:
     """The preconditioner's curvature (:class:`~isochor.core.precondition.Curvature`) of
     one solve, shared by its levels (the springs and the fold guard are the same on every
-    level; each level adds its own constraints): taken at the first variables asked for,
-    again once they moved more than :data:`CURVATURE_MOVE` from there.
+    level; each level adds its own constraints), and by the solves of a drag that follow
+    it (:meth:`isochor.core.surface.EmbeddedSurface.shared`): taken at the first variables
+    asked for, again once they moved more than :data:`CURVATURE_MOVE` from there.
 
     Parameters
     ----------
@@ -240,8 +241,8 @@ class LevelProblem:
     def preconditioner(self, y: np.ndarray, sigma: float):
         """``v -> M^-1 v``, the approximate inverse Hessian of the augmented Lagrangian
         (:mod:`isochor.core.precondition`): the shared curvature (see :class:`Curvatures`)
-        with this level's constraint gradients where it asked first since the curvature was
-        taken; None without an energy Hessian."""
+        with this level's constraint gradients, taken where the level first asks after the
+        curvature was (re)taken; None without an energy Hessian."""
         if self.curvatures is None:
             return None
         curvature = self.curvatures.at(y, lambda: self.to_nodes(y))
