@@ -306,7 +306,7 @@ class FoldGuard:
 
     def determinants(self, nodes: np.ndarray) -> np.ndarray:
         """(k,) ``det J`` at the sample points for node positions ``nodes`` (nodes, 3)."""
-        return self._evaluate(np.asarray(nodes, dtype=np.float64))
+        return self._evaluate(nodes)
 
     def _inactive(self, nodes: np.ndarray) -> bool:
         """Whether no sample can be within the margin at ``nodes``, proven from the last

@@ -55,7 +55,6 @@ class Curvature:
         self.count = len(a)
         ridge = RIDGE * max(float(np.trace(a)) / max(self.count, 1), 1e-12)
         a[np.diag_indices_from(a)] += ridge
-        self.ridge = ridge
         self._factor, self.inverse = None, None
         try:
             factor = la.cho_factor(a, lower=True, check_finite=False)
@@ -84,14 +83,11 @@ class Preconditioner:
 
     Parameters
     ----------
-    curvature : a :class:`Curvature` (shared by the levels of a solve), or the energy's
-        Hessian over the variables to make one from
+    curvature : the energy's :class:`Curvature` (shared by the levels of a solve)
     jacobian : (m, count) constraint gradients in the variables
     """
 
-    def __init__(self, curvature: Curvature | np.ndarray, jacobian: np.ndarray) -> None:
-        if not isinstance(curvature, Curvature):
-            curvature = Curvature(curvature)
+    def __init__(self, curvature: Curvature, jacobian: np.ndarray) -> None:
         self.curvature = curvature
         jac = np.atleast_2d(np.asarray(jacobian, dtype=np.float64))
         self._jac = jac if jac.size else None

@@ -223,17 +223,15 @@ class LevelProblem:
     constraint_grad : ``X -> (c, dc/dX)``, ``(m,)`` and ``(m, n, 3)``, already scale-free
         (see :mod:`isochor.core.constraints`)
     center, size : the normalisation of lengths
-    hessian : ``X -> (3n, 3n)`` the energy's Hessian over the node coordinates, or the
-        :class:`Curvatures` the levels of a solve share; None: no preconditioner
+    curvatures : the :class:`Curvatures` the levels of a solve share; None: no
+        preconditioner
     """
 
-    def __init__(self, nodes, free, energy_grad, constraint_grad, center, size, hessian=None):
+    def __init__(self, nodes, free, energy_grad, constraint_grad, center, size, curvatures=None):
         self.template = np.array(nodes, dtype=np.float64)
         self.coords = free if isinstance(free, Coordinates) else Coordinates(free, center, size)
         self.energy_grad, self.constraint_grad = energy_grad, constraint_grad
-        if hessian is not None and not isinstance(hessian, Curvatures):
-            hessian = Curvatures(hessian, self.coords)
-        self.curvatures: Curvatures | None = hessian
+        self.curvatures: Curvatures | None = curvatures
         self._preconditioner: Preconditioner | None = None
         self._last: tuple[bytes, tuple] | None = None  # (y's bytes, its terms)
         self.size = self.coords.size

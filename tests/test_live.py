@@ -13,7 +13,7 @@ from isochor.core.folds import FoldGuard
 from isochor.core.generators import run_to_end
 from isochor.core.lattice import Lattice
 from isochor.core.multilevel import EmbeddedSurface, live_level, solve
-from isochor.core.precondition import RIDGE, Preconditioner
+from isochor.core.precondition import RIDGE, Curvature, Preconditioner
 from isochor.core.problem import build
 from isochor.core.shapes import torus_levels
 from isochor.core.solver import Coordinates, SolverOptions
@@ -116,7 +116,7 @@ def test_preconditioner_inverts_the_gauss_newton_matrix(pinned, explicit, monkey
     h = coords.restrict(net.hessian(rest))
     jac = rng.standard_normal((2, coords.count))
     jac[1] += 3.0 * np.tile([1.0, 0.0, 0.0], coords.count // 3)  # along a translation
-    pre = Preconditioner(h, jac)
+    pre = Preconditioner(Curvature(h), jac)
     assert (pre.curvature.inverse is not None) == explicit
     for sigma in (7.0, 700.0, 7.0):
         m = h + sigma * jac.T @ jac
