@@ -254,10 +254,9 @@ def solve(
         lam, sigma = al.lam, al.sigma
         change = float(np.max(np.abs(x - x_prev))) / size
         estimate = None
-        if k > 0:  # Eq 29 on the constraints, between this level and the next coarser one
-            c_prev = constraints(k - 1).values(x)
-            ratio = cons.level.triangles / surface.level(k - 1).triangles
-            estimate = float(np.max(np.abs(c_prev - cons.values(x)))) / max(ratio - 1.0, 1e-9)
+        if k > 0:
+            coarse = constraints(k - 1)
+            estimate = _discretisation_error(coarse.values(x), cons.values(x), coarse, cons)
         stats.append(
             LevelStats(
                 k,
@@ -365,9 +364,16 @@ def _missed(constraints, n, x, opts, first: int) -> bool:
     for k in range(below + 1, n - 1):
         cons = constraints(k)
         c = cons.values(x)
-        ratio = cons.level.triangles / previous.level.triangles
-        error = np.max(np.abs(c - c_prev)) / max(ratio - 1.0, 1e-9)
+        error = _discretisation_error(c_prev, c, previous, cons)
         if np.max(np.abs(c)) > opts.tol_volume + MISS_SAFETY * error:
             return True
         previous, c_prev = cons, c
     return False
+
+
+def _discretisation_error(c_coarse, c_fine, coarse, fine) -> float:
+    """Eq 29 on the constraints: the error of the ``fine`` level's constraint values
+    ``c_fine``, estimated from the next ``coarse`` level's ``c_coarse`` at the same nodes
+    (their largest difference over the measured triangle ratio minus one)."""
+    ratio = fine.level.triangles / coarse.level.triangles
+    return float(np.max(np.abs(c_coarse - c_fine))) / max(ratio - 1.0, 1e-9)
