@@ -127,10 +127,11 @@ def first_record(problem) -> tuple[float, float]:
 
 
 class _Clock:
-    """Adds up the time spent in the wrapped methods while installed."""
+    """Adds up the time spent in the wrapped methods while installed (a call within
+    another wrapped call counts once, in the outer one)."""
 
     def __init__(self, *methods) -> None:
-        self.methods, self.seconds, self.saved = methods, 0.0, []
+        self.methods, self.seconds, self.saved, self.depth = methods, 0.0, [], 0
 
     def __enter__(self):
         for cls, name in self.methods:
@@ -141,11 +142,14 @@ class _Clock:
 
     def _timed(self, fn):
         def timed(*args, **kwargs):
+            self.depth += 1
             t0 = time.perf_counter()
             try:
                 return fn(*args, **kwargs)
             finally:
-                self.seconds += time.perf_counter() - t0
+                self.depth -= 1
+                if not self.depth:
+                    self.seconds += time.perf_counter() - t0
 
         return timed
 
@@ -156,12 +160,18 @@ class _Clock:
 
 def step_overhead(problem, repeats: int, options=None) -> Timing:
     """The solver's own work per inner step (seconds): the levels' time minus the time in
-    the evaluations (volume and gradient of the constraints, the fold guard's det J), over
-    the steps: the L-BFGS recursion, the line search, the preconditioner, the spring
-    energy and the glue. Measured on the problem's fresh solve, ``repeats`` times."""
+    the evaluations (the constraints and their gradients on the level meshes, the fold
+    guard's penalty and its det J, also where the preconditioner asks for it), over the
+    steps: the L-BFGS recursion, the line search, the preconditioner, the spring energy
+    and the glue. Measured on the problem's fresh solve, ``repeats`` times."""
     x, fixed, _ = dragged(problem)
     opts = options or problem.options
-    watched = ((Constraints, "values_and_jacobian"), (FoldGuard, "value_and_gradient"))
+    watched = (
+        (Constraints, "values"),
+        (Constraints, "values_and_jacobian"),
+        (FoldGuard, "value_and_gradient"),
+        (FoldGuard, "_evaluate"),
+    )
     run_to_end(solve(problem.surface, x, fixed, options=opts))  # set-up
     per_step = []
     for _ in range(repeats):

@@ -21,7 +21,14 @@ import os
 from pathlib import Path
 
 #: the modules whose source decides the cache folder
-SOURCES = ("_jitbase.py", "_jitbern.py", "_jitbasis.py", "_jitvolume.py", "_jitfolds.py")
+SOURCES = (
+    "_jitbase.py",
+    "_jitbern.py",
+    "_jitbasis.py",
+    "_jitvolume.py",
+    "_jitfolds.py",
+    "_jitsolver.py",
+)
 
 
 def _source_key() -> str:

@@ -50,8 +50,57 @@ def self_check(k, e) -> str:
         "transpose": np.allclose(back, dense @ g.T, rtol=1e-12, atol=1e-12),
         "volume": abs(vol - exact) <= 1e-12 and np.allclose(grad.T, corner, atol=1e-12),
         "face volume": abs(e.face_volume(faces.T.copy(), pts.T.copy(), None, k) - exact) < 1e-12,
+        **solver_checks(k, e, rng),
     }
     return ", ".join(name for name, ok in checks.items() if not ok)
+
+
+def solver_checks(k, e, rng) -> dict[str, bool]:
+    """The solver's kernels against their NumPy formulas: two springs on three nodes (one
+    stretched, one compressed) and a two-loop recursion over three pairs in a ring of 4."""
+    from .pairs import Pairs
+    from .precondition import Product
+
+    x = rng.normal(size=(3, 3))
+    starts, ends, rest = np.array([0, 1]), np.array([1, 2]), np.array([0.1, 50.0])
+    d = x[ends] - x[starts]
+    length = np.linalg.norm(d, axis=1)
+    force = ((length - rest) / length)[:, None] * d
+    grad = np.zeros((3, 3))
+    np.add.at(grad, ends, force)
+    np.add.at(grad, starts, -force)
+    hess = np.zeros((9, 9))
+    for a, b, v, l0, l1 in zip(starts, ends, d, rest, length):
+        u = np.outer(v, v) / l1**2
+        block = u + max(0.0, 1.0 - l0 / l1) * (np.eye(3) - u)
+        for p, q, sign in ((a, a, 1), (b, b, 1), (a, b, -1), (b, a, -1)):
+            hess[3 * p : 3 * p + 3, 3 * q : 3 * q + 3] += sign * block
+    springs = e.springs(x, starts, ends, rest, 1.0, k)
+    pairs, compiled_pairs = Pairs(4, 5), Pairs(4, 5)
+    x0 = np.zeros(5)
+    for i in range(7):  # wraps around the ring; the last pair is dropped (s.y < 0)
+        s = rng.normal(size=5)
+        y = (-1 if i == 6 else 1) * s + 0.1 * rng.normal(size=5)
+        pairs.push(s, x0, y, x0)
+        compiled_pairs.stored(e.push_pair(compiled_pairs, s, x0, y, x0, k))
+    g = rng.normal(size=5)
+    spd = np.eye(5) + 0.1 * np.ones((5, 5))
+    h0s = {"scaled": None, "matrix": Product(spd), "product": spd.__matmul__}
+    return {
+        "pairs": compiled_pairs.head == pairs.head
+        and np.allclose(compiled_pairs.rho, pairs.rho, rtol=1e-12)
+        and np.allclose(compiled_pairs.s, pairs.s),
+        **{
+            f"two-loop ({name})": np.allclose(
+                e.two_loop(pairs, g.copy(), h0, k), pairs.direction(g.copy(), h0), atol=1e-12
+            )
+            for name, h0 in h0s.items()
+        },
+        "springs": springs is not None
+        and np.isclose(springs[0], 0.5 * np.sum((length - rest) ** 2), rtol=1e-12)
+        and np.allclose(springs[1], grad, atol=1e-12),
+        "spring hessian": np.allclose(e.spring_hessian(x, starts, ends, rest, 1.0, k), hess),
+    }
 
 
 def derivatives(bases, shape, uvw):

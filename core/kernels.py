@@ -1,5 +1,5 @@
-"""Optional compiled kernels for the evaluation's hot loops (numba), with the NumPy path as
-the fallback.
+"""Optional compiled kernels (numba) for the hot loops of the evaluation and of the solver's
+own step, with the NumPy path as the fallback.
 
 What they compute (the same numbers as the NumPy path, to rounding; ``tests/test_kernels``):
 
@@ -11,7 +11,11 @@ What they compute (the same numbers as the NumPy path, to rounding; ``tests/test
 - :func:`winding_numbers`: :func:`core.bodies.winding_numbers` (the fold guard's interior
   samples, on the first solve of a model);
 - :func:`determinants`: det J at many points, the fold check of every result
-  (:mod:`core._jitfolds`).
+  (:mod:`core._jitfolds`);
+- :func:`springs`, :func:`spring_hessian`, :func:`two_loop`, :func:`push_pair`: the
+  spring energy, gradient and Hessian of :class:`core.springs.SpringNetwork` and the
+  L-BFGS recursion and its memory (:mod:`core.lbfgs`), the solver's own work per step
+  (:mod:`core._jitsolver`).
 
 Each returns None when the compiled kernels are not there (yet); the caller then runs its
 NumPy code. They are there once numba (the ``fast`` extra) imports and has compiled them.
@@ -141,7 +145,7 @@ def _fail(why: str) -> None:
 
 def _compile() -> SimpleNamespace:
     """Compile the kernels for their argument types (or load them from numba's cache)."""
-    from . import _jitbasis, _jitfolds, _jitvolume
+    from . import _jitbasis, _jitfolds, _jitsolver, _jitvolume
     from ._jitbase import numba
 
     t = numba.types
@@ -151,7 +155,7 @@ def _compile() -> SimpleNamespace:
         return t.Array(dtype, dims, "C", readonly=readonly)
 
     w1, w2 = array(f8, 1, False), array(f8, 2, False)
-    r2, r3, r4 = array(f8, 2), array(f8, 3), array(f8, 4)
+    r1, r2, r3, r4 = array(f8, 1), array(f8, 2), array(f8, 3), array(f8, 4)
     l1, l2, s1 = array(i8, 1), array(i8, 2), array(i4, 1)
     signatures = [
         (_jitbasis.apply_range, t.void(r2, r3, w2, i8, i8)),
@@ -161,6 +165,12 @@ def _compile() -> SimpleNamespace:
         (_jitvolume.face_volume_range, f8(r2, f8, f8, f8, l1, l1, l1, i8, i8)),
         (_jitvolume.winding_range, t.void(r2, r3, w1, i8, i8)),
         (_jitfolds.determinant_range, t.void(r2, r4, r2, w1, w1, i8, i8)),
+        (_jitsolver.spring_energy_gradient, f8(r2, l1, l1, r1, f8, w2)),
+        (_jitsolver.spring_hessian, t.void(r2, l1, l1, r1, f8, w2)),
+        (_jitsolver.two_loop_first, t.void(w1, r2, r2, r1, i8, i8, w1)),
+        (_jitsolver.two_loop_second, t.void(w1, r2, r2, r1, i8, i8, r1)),
+        (_jitsolver.two_loop, t.void(w1, r2, r2, r1, i8, i8, w1, r2, w1)),
+        (_jitsolver.push_pair, t.boolean(r1, r1, r1, r1, w2, w2, w1, i8)),
     ]
     for fn, sig in signatures:
         fn.compile(sig)
@@ -342,6 +352,62 @@ def determinants(
 
     _jitthreads.run(task, len(ranges))
     return (out, norms) if frobenius else out
+
+
+@_guard
+def springs(x: np.ndarray, starts, ends, rest, stiffness: float, k=None):
+    """(energy, (n, 3) gradient) of the springs ``starts -> ends`` (int64) with rest lengths
+    ``rest`` at the (n, 3) C-ordered float64 nodes ``x``; None: no kernels."""
+    k = k or _kernels()
+    if k is None:
+        return None
+    grad = np.empty(x.shape)
+    return k.spring_energy_gradient(x, starts, ends, rest, stiffness, grad), grad
+
+
+@_guard
+def spring_hessian(x: np.ndarray, starts, ends, rest, stiffness: float, k=None):
+    """(3n, 3n) the springs' Hessian (see :func:`springs`); None: no kernels."""
+    k = k or _kernels()
+    if k is None:
+        return None
+    out = np.empty((3 * len(x), 3 * len(x)))
+    k.spring_hessian(x, starts, ends, rest, stiffness, out)
+    return out
+
+
+_NO_MATRIX = np.zeros((0, 0))
+
+
+@_guard
+def two_loop(pairs, q: np.ndarray, h0, k=None) -> np.ndarray | None:
+    """``-H q`` by the two-loop recursion over ``pairs`` (:class:`core.pairs.Pairs`; ``q``
+    is overwritten): ``h0`` the start matrix's product (one call when it keeps its matrix
+    as ``h0.matrix``), or None for the scaled identity; None: no kernels."""
+    k = k or _kernels()
+    if k is None:
+        return None
+    p = pairs
+    matrix = _NO_MATRIX if h0 is None else getattr(h0, "matrix", None)
+    if matrix is not None:
+        out = np.empty(q.shape)
+        k.two_loop(q, p.s, p.y, p.rho, p.head, p.count, p.alphas, matrix, out)
+        return out
+    k.two_loop_first(q, p.s, p.y, p.rho, p.head, p.count, p.alphas)
+    q = p.start(q, h0)
+    k.two_loop_second(q, p.s, p.y, p.rho, p.head, p.count, p.alphas)
+    return np.negative(q, out=q)
+
+
+@_guard
+def push_pair(pairs, x_new, x, g_new, g, k=None) -> bool | None:
+    """Store ``(x_new - x, g_new - g)`` in ``pairs`` (:class:`core.pairs.Pairs`) at its
+    head when its curvature is positive beyond rounding; whether it was stored (for
+    ``pairs.stored``); None: no kernels."""
+    k = k or _kernels()
+    if k is None:
+        return None
+    return k.push_pair(x_new, x, g_new, g, pairs.s, pairs.y, pairs.rho, pairs.head)
 
 
 if __name__ == "__main__" and sys.argv[1:2] == ["--compile"]:  # see core._jitcache

@@ -12,11 +12,13 @@ starts from.
 from __future__ import annotations
 
 import warnings
-from collections import deque
 from collections.abc import Callable, Generator
 
 import numpy as np
 from scipy.optimize import line_search
+
+from . import kernels
+from .pairs import Pairs
 
 #: a preconditioned L-BFGS run that has not converged after this many steps goes on with
 #: the plain scaled identity (keeping its correction pairs): the preconditioner is the
@@ -57,27 +59,26 @@ def lbfgs(
 
     x = np.array(x0, dtype=np.float64)
     f, g, _ = evaluate(x)
-    s_hist: deque[np.ndarray] = deque(maxlen=memory)
-    y_hist: deque[np.ndarray] = deque(maxlen=memory)
+    pairs = Pairs(memory, len(x))
     f_old = None
     for it in range(max_iter):
-        if not np.all(np.isfinite(g)):
+        g_max = float(np.abs(g).max()) if len(g) else 0.0
+        if not np.isfinite(g_max):
             raise FloatingPointError("the objective gradient is not finite")
-        if np.max(np.abs(g)) <= gtol:
+        if g_max <= gtol:
             return x, it, True
         if it == PRECONDITIONED_STEPS:
             h0 = None  # see PRECONDITIONED_STEPS
-        d = _two_loop(g, s_hist, y_hist, h0)
-        if g @ d >= 0:  # not a descent direction: restart from steepest descent
-            s_hist.clear()
-            y_hist.clear()
-            d = -g
-            h0 = None
-        if not s_hist:  # first step: a move of at most 1% (10% preconditioned) of the size
-            d = d * min(1.0, (0.01 if h0 is None else 0.1) / max(np.max(np.abs(d)), 1e-300))
-        slope = g @ d
+        d = _direction(pairs, g, h0)
+        slope = float(g @ d)
+        if slope >= 0:  # not a descent direction: restart from steepest descent
+            pairs.count = 0
+            d, h0 = -g, None
+        if not pairs.count:  # first step: a move of at most 1% (10% preconditioned) of the size
+            d = d * min(1.0, (0.01 if h0 is None else 0.1) / max(float(np.abs(d).max()), 1e-300))
+            slope = float(g @ d)
         alpha = None
-        if s_hist or h0 is not None:  # the quasi-Newton step usually fits: take it if it can
+        if pairs.count or h0 is not None:  # the quasi-Newton step usually fits: take it if it can
             f_try, g_try, _ = evaluate(x + d)
             if f_try <= f + 1e-4 * slope and abs(g_try @ d) <= 0.9 * abs(slope):
                 alpha = 1.0
@@ -102,10 +103,7 @@ def lbfgs(
                 return x, it, False
         x_new = x + alpha * d
         f_new, g_new, aux = evaluate(x_new)
-        s, yv = x_new - x, g_new - g
-        if s @ yv > 1e-12 * np.sqrt((s @ s) * (yv @ yv)):
-            s_hist.append(s)
-            y_hist.append(yv)
+        _push(pairs, x_new, x, g_new, g)
         f_old, x, f, g = f, x_new, f_new, g_new
         yield x, aux
         if f_old - f <= 1e-15 * max(1.0, abs(f)):  # no measurable progress left
@@ -113,21 +111,16 @@ def lbfgs(
     return x, max_iter, False
 
 
-def _two_loop(g: np.ndarray, s_hist: deque, y_hist: deque, h0=None) -> np.ndarray:
-    """L-BFGS search direction -H g from the stored correction pairs (and ``h0``)."""
-    q = g.copy()
-    rhos = [1.0 / (y @ s) for s, y in zip(s_hist, y_hist)]
-    alphas = []
-    for s, y, rho in zip(reversed(s_hist), reversed(y_hist), reversed(rhos)):
-        a = rho * (s @ q)
-        q -= a * y
-        alphas.append(a)
-    if h0 is not None:
-        q = h0(q)
-    elif s_hist:
-        s, y = s_hist[-1], y_hist[-1]
-        q *= (s @ y) / (y @ y)
-    for s, y, rho, a in zip(s_hist, y_hist, rhos, reversed(alphas)):
-        b = rho * (y @ q)
-        q += (a - b) * s
-    return -q
+def _direction(pairs: Pairs, g: np.ndarray, h0) -> np.ndarray:
+    """The search direction ``-H g``: compiled where the kernels are ready."""
+    d = kernels.two_loop(pairs, np.array(g, dtype=np.float64), h0)
+    return d if d is not None else pairs.direction(np.array(g, dtype=np.float64), h0)
+
+
+def _push(pairs: Pairs, x_new, x, g_new, g) -> None:
+    """Keep the correction pair of a step: compiled where the kernels are ready."""
+    kept = kernels.push_pair(pairs, x_new, x, g_new, g)
+    if kept is None:
+        pairs.push(x_new, x, g_new, g)
+    else:
+        pairs.stored(kept)

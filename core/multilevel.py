@@ -230,8 +230,10 @@ def solve(
         run = augmented_lagrangian(problem, problem.to_y(x), lam, sigma, opts)
 
         def progress(it, k=k, cons=cons, problem=problem):
+            nodes = problem.to_nodes(it.y)  # a new array: read-only from here on
+            nodes.flags.writeable = False
             return Progress(
-                frozen_copy(problem.to_nodes(it.y)),
+                nodes,
                 k,
                 n_levels,
                 cons.level.triangles,

@@ -40,6 +40,19 @@ RIDGE = 1e-6
 EXPLICIT = 400
 
 
+class Product:
+    """``v -> matrix @ v``: an explicit inverse Hessian, which the compiled L-BFGS
+    recursion takes as the matrix itself (:func:`isochor.core.kernels.two_loop`)."""
+
+    __slots__ = ("matrix",)
+
+    def __init__(self, matrix: np.ndarray) -> None:
+        self.matrix = np.ascontiguousarray(matrix, dtype=np.float64)
+
+    def __call__(self, v: np.ndarray) -> np.ndarray:
+        return self.matrix @ v
+
+
 class Curvature:
     """``A = H + ridge``, factored once; :meth:`solve` applies ``A^-1``.
 
@@ -53,8 +66,8 @@ class Curvature:
     def __init__(self, hessian: np.ndarray) -> None:
         a = np.array(hessian, dtype=np.float64)
         self.count = len(a)
-        ridge = RIDGE * max(float(np.trace(a)) / max(self.count, 1), 1e-12)
-        a[np.diag_indices_from(a)] += ridge
+        ridge = RIDGE * max(float(a.trace()) / max(self.count, 1), 1e-12)
+        a.flat[:: self.count + 1] += ridge  # the diagonal
         self._factor, self.inverse = None, None
         try:
             factor = la.cho_factor(a, lower=True, check_finite=False)
@@ -106,7 +119,7 @@ class Preconditioner:
         if not a.ok:
             return None
         if u is None or not sigma > 0:
-            return a.solve
+            return a.solve if a.inverse is None else Product(a.inverse)
         try:
             s_inv = np.linalg.inv(np.eye(len(jac)) / sigma + jac @ u)
         except np.linalg.LinAlgError:
@@ -115,7 +128,7 @@ class Preconditioner:
             return None
         if a.inverse is not None:
             m_inv = a.inverse - u @ s_inv @ u.T
-            return m_inv.__matmul__ if np.all(np.isfinite(m_inv)) else None
+            return Product(m_inv) if np.all(np.isfinite(m_inv)) else None
 
         def apply(v: np.ndarray) -> np.ndarray:
             return a.solve(v) - u @ (s_inv @ (u.T @ v))

@@ -103,7 +103,7 @@ class Curvatures:
     def at(self, y: np.ndarray, nodes) -> Curvature:
         """The curvature for variables ``y``; ``nodes()`` gives their node positions."""
         taken = self._taken
-        if taken is None or np.max(np.abs(y - taken[0])) > CURVATURE_MOVE:
+        if taken is None or np.abs(y - taken[0]).max() > CURVATURE_MOVE:
             taken = (np.array(y), Curvature(self.coords.restrict(self.hessian(nodes()))))
             self._taken = taken
         return taken[1]
@@ -190,7 +190,7 @@ class Coordinates:
 
     def to_nodes(self, y: np.ndarray, template: np.ndarray) -> np.ndarray:
         out = np.array(template, dtype=np.float64)
-        out[self.free] = self._origin + self.size * y
+        out.reshape(-1)[self._columns] = self._origin + self.size * y
         return self.tied(out)
 
     def tied(self, nodes: np.ndarray) -> np.ndarray:
@@ -208,7 +208,7 @@ class Coordinates:
         if len(self.dst):
             flat = flat.copy()
             flat[..., self.src] += self.sign * flat[..., self.dst]
-        return flat[..., self._columns]
+        return flat.take(self._columns, axis=-1)
 
 
 class LevelProblem:
@@ -280,7 +280,7 @@ class LevelProblem:
 
         def fun(y: np.ndarray):
             e, de, c, dc = self.terms(y)
-            la = e + 0.5 * sigma * float(c @ c) - float(lam @ c)
+            la = e + float(c @ (0.5 * sigma * c - lam))
             return la, de + (sigma * c - lam) @ dc, (e, worst(c))
 
         return fun
@@ -289,7 +289,9 @@ class LevelProblem:
 def worst(c: np.ndarray) -> float:
     """The constraint residual of largest magnitude, with its sign."""
     c = np.asarray(c, dtype=np.float64)
-    return float(c[np.argmax(np.abs(c))]) if c.size else 0.0
+    if c.size <= 1:  # the usual case: the volume alone
+        return float(c[0]) if c.size else 0.0
+    return float(c[np.abs(c).argmax()])
 
 
 @dataclass(frozen=True)

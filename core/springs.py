@@ -15,6 +15,8 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
+from . import kernels
+
 #: Undirected neighbour offsets: 3 axis directions and 4 body diagonals. Each node meets
 #: each offset forwards and backwards, hence 6 + 8 = 14 neighbours.
 OFFSETS = np.array(
@@ -94,6 +96,10 @@ class SpringNetwork:
 
     def energy_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
         """Energy and its gradient ``(nodes, 3)``."""
+        nodes = np.ascontiguousarray(nodes, dtype=np.float64)
+        out = kernels.springs(nodes, *self._compiled)
+        if out is not None:
+            return out
         d = self._vectors(nodes)
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         stretch = length - self.rest_lengths
@@ -111,6 +117,10 @@ class SpringNetwork:
         difference of its ends (``u`` the unit direction, ``l`` the length, ``L`` the rest
         length); the second term is dropped where it is negative (a compressed spring), so
         the matrix stays a valid preconditioner. Exact for every stretched spring."""
+        nodes = np.ascontiguousarray(nodes, dtype=np.float64)
+        out = kernels.spring_hessian(nodes, *self._compiled)
+        if out is not None:
+            return out
         d = self._vectors(nodes)
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         safe = np.where(length > 0, length, 1.0)
@@ -122,6 +132,11 @@ class SpringNetwork:
         weights = np.repeat(np.concatenate([block, -block]).ravel(), 2)
         flat = np.bincount(self._hessian_cells, weights, n * n)
         return flat.reshape(n, n)
+
+    @property
+    def _compiled(self) -> tuple:
+        """The springs as the compiled kernels take them (:func:`core.kernels.springs`)."""
+        return self._starts, self._ends, self.rest_lengths, self.stiffness
 
     @cached_property
     def _hessian_cells(self) -> np.ndarray:
