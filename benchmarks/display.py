@@ -140,9 +140,10 @@ def run_display(models: Path, repeats: int) -> tuple[list[Row], list[str]]:
     why = f"without the preconditioner {plain.ms(3)} ms"
     if not ok:
         why += (
-            "; Python work per step: the L-BFGS recursion and line search, the springs, "
-            "the preconditioner's set-up per outer iteration, the progress record (the "
-            "evaluations are compiled, this part is not)"
+            "; Python glue between compiled calls, spread thin (profiled: the "
+            "preconditioner's curvature and Woodbury set-up per outer iteration about a "
+            "quarter, the L-BFGS step and its line-search test, the objective's glue, the "
+            "progress records); the springs and the L-BFGS recursion are compiled"
         )
     rows.append(Row("solver work per inner step, torus example", over, "<= 0.050 ms", ok, why))
     cow = models / "cow.obj"
