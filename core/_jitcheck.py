@@ -57,7 +57,9 @@ def self_check(k, e) -> str:
 
 def solver_checks(k, e, rng) -> dict[str, bool]:
     """The solver's kernels against their NumPy formulas: two springs on three nodes (one
-    stretched, one compressed) and a two-loop recursion over three pairs in a ring of 4."""
+    stretched, one compressed), and the memory and the two-loop recursion over a ring of
+    four pairs that has wrapped around and dropped a pair of negative curvature, with
+    each kind of start matrix."""
     from .pairs import Pairs
     from .precondition import Product
 
