@@ -21,7 +21,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jitbase import KERNEL, REDUCE, njit
+from ._jitbase import INLINE, KERNEL, REDUCE, njit
+from ._winding import half_solid_angle
+
+#: the solid-angle term shared with the NumPy path, compiled into the winding kernel
+_half_solid_angle = njit(**INLINE)(half_solid_angle)
 
 #: vertices of one fan above which its pairs are sorted with argsort (else insertion sort)
 _SMALL_FAN = 32
@@ -186,26 +190,17 @@ def face_volume_range(rows, cx, cy, cz, f0, f1, f2, start, stop):
 def winding_range(points, corners, out, start, stop):
     """``out[q]`` for the points ``start..stop`` of the (3, p) ``points``: the generalised
     winding number over the triangles ``corners`` (3 corners, 3 coordinates, t), the
-    solid-angle formula of :func:`core.bodies.winding_numbers` (Van Oosterom and
-    Strackee), triangle by triangle in the same order."""
+    solid-angle term of :func:`core.bodies.winding_numbers` (:mod:`core._winding`),
+    triangle by triangle in the same order."""
     t = corners.shape[2]
     a, b, c = corners[0], corners[1], corners[2]
     for q in range(start, stop):
         px, py, pz = points[0, q], points[1, q], points[2, q]
         total = 0.0
         for f in range(t):
-            ax, ay, az = a[0, f] - px, a[1, f] - py, a[2, f] - pz
-            bx, by, bz = b[0, f] - px, b[1, f] - py, b[2, f] - pz
-            cx, cy, cz = c[0, f] - px, c[1, f] - py, c[2, f] - pz
-            la = np.sqrt(ax * ax + ay * ay + az * az)
-            lb = np.sqrt(bx * bx + by * by + bz * bz)
-            lc = np.sqrt(cx * cx + cy * cy + cz * cz)
-            num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
-            den = (
-                la * lb * lc
-                + (ax * bx + ay * by + az * bz) * lc
-                + (ax * cx + ay * cy + az * cz) * lb
-                + (bx * cx + by * cy + bz * cz) * la
-            )
-            total += np.arctan2(num, den)
+            total += _half_solid_angle(
+                a[0, f] - px, a[1, f] - py, a[2, f] - pz,
+                b[0, f] - px, b[1, f] - py, b[2, f] - pz,
+                c[0, f] - px, c[1, f] - py, c[2, f] - pz,
+            )  # fmt: skip
         out[q] = total / (2.0 * np.pi)

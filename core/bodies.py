@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels
+from ._winding import half_solid_angle
 
 #: above this many (point, triangle) pairs the containment and overlap tests are skipped
 BUDGET = 50_000_000
@@ -197,18 +198,6 @@ def winding_numbers(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     step = max(1, WINDING_BLOCK // corners.shape[2])
     for s in range(0, len(points), step):
         p = points[s : s + step]
-        ax, ay, az = (corners[0, c][None] - p[:, c, None] for c in range(3))
-        bx, by, bz = (corners[1, c][None] - p[:, c, None] for c in range(3))
-        cx, cy, cz = (corners[2, c][None] - p[:, c, None] for c in range(3))
-        la = np.sqrt(ax * ax + ay * ay + az * az)
-        lb = np.sqrt(bx * bx + by * by + bz * bz)
-        lc = np.sqrt(cx * cx + cy * cy + cz * cz)
-        num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
-        den = (
-            la * lb * lc
-            + (ax * bx + ay * by + az * bz) * lc
-            + (ax * cx + ay * cy + az * cz) * lb
-            + (bx * cx + by * cy + bz * cz) * la
-        )
-        out[s : s + step] = np.arctan2(num, den).sum(axis=1) / (2 * np.pi)
+        rel = [corners[k, c][None] - p[:, c, None] for k in range(3) for c in range(3)]
+        out[s : s + step] = half_solid_angle(*rel).sum(axis=1) / (2 * np.pi)
     return out
