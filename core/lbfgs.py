@@ -77,12 +77,13 @@ def lbfgs(
         if not pairs.count:  # first step: a move of at most 1% (10% preconditioned) of the size
             d = d * min(1.0, (0.01 if h0 is None else 0.1) / max(float(np.abs(d).max()), 1e-300))
             slope = float(g @ d)
-        alpha = None
+        step = None  # (x_new, f_new, g_new, aux) of the accepted step
         if pairs.count or h0 is not None:  # the quasi-Newton step usually fits: take it if it can
-            f_try, g_try, _ = evaluate(x + d)
+            x_try = x + d
+            f_try, g_try, aux_try = evaluate(x_try)
             if f_try <= f + 1e-4 * slope and abs(g_try @ d) <= 0.9 * abs(slope):
-                alpha = 1.0
-        if alpha is None:
+                step = x_try, f_try, g_try, aux_try
+        if step is None:
             with warnings.catch_warnings():
                 warnings.filterwarnings("ignore", "The line search algorithm")
                 alpha, *_ = line_search(
@@ -95,14 +96,15 @@ def lbfgs(
                     f_old,
                     maxiter=30,
                 )
-        if alpha is None:  # Wolfe search failed: backtrack on sufficient decrease only
-            alpha = 1.0
-            while alpha > 1e-12 and evaluate(x + alpha * d)[0] > f + 1e-4 * alpha * slope:
-                alpha *= 0.25
-            if alpha <= 1e-12:
-                return x, it, False
-        x_new = x + alpha * d
-        f_new, g_new, aux = evaluate(x_new)
+            if alpha is None:  # Wolfe search failed: backtrack on sufficient decrease only
+                alpha = 1.0
+                while alpha > 1e-12 and evaluate(x + alpha * d)[0] > f + 1e-4 * alpha * slope:
+                    alpha *= 0.25
+                if alpha <= 1e-12:
+                    return x, it, False
+            x_try = x + alpha * d
+            step = (x_try, *evaluate(x_try))
+        x_new, f_new, g_new, aux = step
         _push(pairs, x_new, x, g_new, g)
         f_old, x, f, g = f, x_new, f_new, g_new
         yield x, aux
