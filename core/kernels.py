@@ -24,9 +24,11 @@ first evaluation of ``START_SIZE`` points or faces) loads them in a background t
 numba's on-disk cache (:mod:`core._jitbase`), and NumPy serves until that is done. With an
 empty cache a child interpreter compiles them first (:mod:`core._jitcache`). Whatever
 goes wrong (numba missing, an import or compile error, a failed self-check, a compiled call
-that raises) leaves the NumPy path in place; :func:`status` says why.
-``ISOCHOR_NO_JIT=1`` switches them off; :func:`ready` waits for them, :func:`numpy_path`
-forces the NumPy path for a while (tests and benchmarks compare the two).
+that raises) leaves the NumPy path in place; :func:`status` says why. A solve keeps the
+path it started on to its end (:func:`one_path`), so its result never depends on when
+the kernels arrived. ``ISOCHOR_NO_JIT=1`` switches them off; :func:`ready` waits for
+them, :func:`numpy_path` forces the NumPy path for a while (tests and benchmarks compare
+the two).
 
 Large inputs are cut into fixed ranges (``CHUNK`` points, vertices or faces), run on up to
 ``ISOCHOR_JIT_THREADS`` threads (default: the usable cores, at most 4; the kernels release
@@ -36,6 +38,7 @@ the GIL) and combined in range order, so results do not depend on the thread cou
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import os
 import sys
@@ -61,6 +64,8 @@ set_threads = _jitthreads.set_threads
 _log = logging.getLogger(__name__)
 _lock = threading.Lock()
 _state = SimpleNamespace(status="idle", reason="", kernels=None, thread=None, mode="auto")
+#: ``mode``: the path this thread's running solve keeps (see :func:`one_path`)
+_local = threading.local()
 
 
 def _off_by_env() -> bool:
@@ -130,10 +135,42 @@ def _kernels(size: int = 0) -> SimpleNamespace | None:
     """The compiled kernels if they are to be used; starts loading them for a large input."""
     k = _state.kernels
     if k is not None:
-        return k if _state.mode == "auto" else None
+        return k if (getattr(_local, "mode", None) or _state.mode) == "auto" else None
     if size >= START_SIZE and _state.status == "idle":
         start()
     return None
+
+
+def one_path(solver):
+    """Decorate a generator function (a solve): each generator it makes runs on one path,
+    the compiled one if the kernels are in use when it starts, else NumPy to its end.
+
+    The kernels load in the background, and the two paths round differently; a solve that
+    changed path when they arrived would end a little elsewhere (within its tolerance)
+    depending on when that was, so the same command could give different nodes. A solve
+    started inside another keeps the outer one's path."""
+
+    @functools.wraps(solver)
+    def run(*args, **kwargs):
+        return _on_one_path(solver(*args, **kwargs))
+
+    return run
+
+
+def _on_one_path(gen):
+    mode = getattr(_local, "mode", None) or ("auto" if active() else "numpy")
+    try:
+        while True:
+            outer, _local.mode = getattr(_local, "mode", None), mode
+            try:
+                record = next(gen)
+            except StopIteration as stop:
+                return stop.value
+            finally:
+                _local.mode = outer
+            yield record
+    finally:
+        gen.close()  # closing this closes the solve at once
 
 
 def _fail(why: str) -> None:

@@ -27,6 +27,7 @@ from collections.abc import Generator, Sequence
 
 import numpy as np
 
+from . import kernels
 from .anchor import held_face
 from .constraints import Goal
 from .errors import IsochorError
@@ -48,6 +49,7 @@ from .symmetry import Mirror
 __all__ = ["EmbeddedSurface", "Progress", "SolveResult", "live_level", "solve"]
 
 
+@kernels.one_path
 def solve(
     surface: EmbeddedSurface,
     nodes: np.ndarray,

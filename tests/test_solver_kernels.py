@@ -1,6 +1,6 @@
 """The compiled pieces of the solver's own step (core/_jitsolver.py through core/kernels.py):
 the spring energy, gradient and Hessian and the L-BFGS memory and recursion give the NumPy
-path's numbers, and a broken one leaves the NumPy path in place."""
+path's numbers, a broken one leaves the NumPy path in place, and a solve keeps one path."""
 
 from __future__ import annotations
 
@@ -10,10 +10,14 @@ import numpy as np
 import pytest
 
 from isochor.core import kernels
+from isochor.core.generators import run_to_end
 from isochor.core.lattice import Lattice
 from isochor.core.lbfgs import lbfgs
+from isochor.core.multilevel import solve
 from isochor.core.pairs import Pairs
 from isochor.core.precondition import Product
+from isochor.core.problem import build
+from isochor.core.scenario import Scenario
 from isochor.core.springs import SpringNetwork
 
 
@@ -106,3 +110,31 @@ def test_lbfgs_with_a_broken_kernel_falls_back_and_converges(compiled, monkeypat
         x, _, converged = stop.value
     assert converged and np.allclose(x, np.linalg.solve(a, b))
     assert kernels.status().startswith("failed: two_loop: RuntimeError")
+
+
+@pytest.mark.parametrize("first", ["numpy", "auto"])
+def test_a_solve_keeps_the_path_it_started_on(compiled, first):
+    """The kernels arriving (or leaving) in the middle of a solve do not change where it
+    ends: the two paths round differently, and the same command must give the same nodes."""
+    scenario = Scenario({"builtin": "torus", "n_levels": 3}, target_volume_ratio=10)
+    problem = build(scenario)
+
+    def run(switch: bool) -> np.ndarray:
+        previous = kernels.set_mode(first)
+        try:
+            gen = solve(
+                problem.surface,
+                problem.nodes,
+                problem.fixed,
+                goal=problem.scenario.goal,
+                options=problem.options,
+            )
+            for _ in range(10):  # into the first level's steps
+                next(gen)
+            if switch:
+                kernels.set_mode("auto" if first == "numpy" else "numpy")
+            return run_to_end(gen).nodes
+        finally:
+            kernels.set_mode(previous)
+
+    assert np.array_equal(run(switch=True), run(switch=False))
