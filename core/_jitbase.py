@@ -28,6 +28,7 @@ SOURCES = (
     "_jitvolume.py",
     "_jitfolds.py",
     "_jitsolver.py",
+    "_jitcompile.py",
     "_winding.py",
 )
 

@@ -50,18 +50,19 @@ def self_check(k, e) -> str:
         "transpose": np.allclose(back, dense @ g.T, rtol=1e-12, atol=1e-12),
         "volume": abs(vol - exact) <= 1e-12 and np.allclose(grad.T, corner, atol=1e-12),
         "face volume": abs(e.face_volume(faces.T.copy(), pts.T.copy(), None, k) - exact) < 1e-12,
-        **solver_checks(k, e, rng),
+        **solver_checks(k, rng),
     }
     return ", ".join(name for name, ok in checks.items() if not ok)
 
 
-def solver_checks(k, e, rng) -> dict[str, bool]:
-    """The solver's kernels against their NumPy formulas: two springs on three nodes (one
-    stretched, one compressed), and the memory and the two-loop recursion over a ring of
-    four pairs that has wrapped around and dropped a pair of negative curvature, with
-    each kind of start matrix."""
+def solver_checks(k, rng) -> dict[str, bool]:
+    """The solver's kernels (:mod:`core._jitsolver`, called as :mod:`core.stepkernels`
+    calls them) against their NumPy formulas: two springs on three nodes (one stretched,
+    one compressed), the memory and the two-loop recursion over a ring of four pairs that
+    has wrapped around and dropped a pair of negative curvature, with each kind of start
+    matrix, and the inverse of a positive definite matrix and the refusal of an
+    indefinite one."""
     from .pairs import Pairs
-    from .precondition import Product
 
     x = rng.normal(size=(3, 3))
     starts, ends, rest = np.array([0, 1]), np.array([1, 2]), np.array([0.1, 50.0])
@@ -77,32 +78,56 @@ def solver_checks(k, e, rng) -> dict[str, bool]:
         block = u + max(0.0, 1.0 - l0 / l1) * (np.eye(3) - u)
         for p, q, sign in ((a, a, 1), (b, b, 1), (a, b, -1), (b, a, -1)):
             hess[3 * p : 3 * p + 3, 3 * q : 3 * q + 3] += sign * block
-    springs = e.springs(x, starts, ends, rest, 1.0, k)
-    pairs, compiled_pairs = Pairs(4, 5), Pairs(4, 5)
+    got_grad, got_hess = np.empty((3, 3)), np.empty((9, 9))
+    energy = k.spring_energy_gradient(x, starts, ends, rest, 1.0, got_grad)
+    k.spring_hessian(x, starts, ends, rest, 1.0, got_hess)
+    pairs, compiled = Pairs(4, 5), Pairs(4, 5)
     x0 = np.zeros(5)
     for i in range(7):  # wraps around the ring; the last pair is dropped (s.y < 0)
         s = rng.normal(size=5)
         y = (-1 if i == 6 else 1) * s + 0.1 * rng.normal(size=5)
         pairs.push(s, x0, y, x0)
-        compiled_pairs.stored(e.push_pair(compiled_pairs, s, x0, y, x0, k))
+        compiled.stored(
+            k.push_pair(s, x0, y, x0, compiled.s, compiled.y, compiled.rho, compiled.head)
+        )
     g = rng.normal(size=5)
     spd = np.eye(5) + 0.1 * np.ones((5, 5))
-    h0s = {"scaled": None, "matrix": Product(spd), "product": spd.__matmul__}
+    ring = (compiled.s, compiled.y, compiled.rho, compiled.head, compiled.count, compiled.alphas)
+    directions = {}
+    for name, matrix in (("scaled", np.zeros((0, 0))), ("matrix", spd)):
+        out = np.empty(5)
+        g_max, slope = k.two_loop(g, *ring, matrix, np.empty(5), out)
+        directions[name] = out, g_max, slope, None if name == "scaled" else spd.__matmul__
+    q = g.copy()  # a start matrix applied outside the kernels, between the two loops
+    k.two_loop_first(q, *ring)
+    q = spd @ q
+    k.two_loop_second(q, *ring)
+    directions["product"] = -q, np.abs(g).max(), g @ -q, spd.__matmul__
+    inverse, refused = np.empty((5, 5)), np.empty((5, 5))
     return {
-        "pairs": compiled_pairs.head == pairs.head
-        and np.allclose(compiled_pairs.rho, pairs.rho, rtol=1e-12)
-        and np.allclose(compiled_pairs.s, pairs.s),
+        "pairs": compiled.head == pairs.head
+        and np.allclose(compiled.rho, pairs.rho, rtol=1e-12)
+        and np.allclose(compiled.s, pairs.s),
         **{
-            f"two-loop ({name})": np.allclose(
-                e.two_loop(pairs, g.copy(), h0, k), pairs.direction(g.copy(), h0), atol=1e-12
-            )
-            for name, h0 in h0s.items()
+            f"two-loop ({name})": _same_direction(got, pairs.direction(g.copy(), h0), g)
+            for name, (*got, h0) in directions.items()
         },
-        "springs": springs is not None
-        and np.isclose(springs[0], 0.5 * np.sum((length - rest) ** 2), rtol=1e-12)
-        and np.allclose(springs[1], grad, atol=1e-12),
-        "spring hessian": np.allclose(e.spring_hessian(x, starts, ends, rest, 1.0, k), hess),
+        "springs": np.isclose(energy, 0.5 * np.sum((length - rest) ** 2), rtol=1e-12)
+        and np.allclose(got_grad, grad, atol=1e-12),
+        "spring hessian": np.allclose(got_hess, hess),
+        "spd inverse": k.spd_inverse(spd, 1e-6, inverse)
+        and np.allclose(inverse @ spd, np.eye(5), atol=1e-5)
+        and not k.spd_inverse(spd - 2 * np.eye(5), 1e-6, refused),
     }
+
+
+def _same_direction(got, d, g) -> bool:
+    """A compiled ``(d, max |g|, g . d)`` against the NumPy recursion's ``d``."""
+    return (
+        np.allclose(got[0], d, atol=1e-12)
+        and got[1] == np.abs(g).max()
+        and np.isclose(got[2], g @ d, rtol=1e-12)
+    )
 
 
 def derivatives(bases, shape, uvw):

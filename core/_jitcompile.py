@@ -36,8 +36,9 @@ def compile_all() -> SimpleNamespace:
         (_jitsolver.spring_hessian, t.void(r2, l1, l1, r1, f8, w2)),
         (_jitsolver.two_loop_first, t.void(w1, r2, r2, r1, i8, i8, w1)),
         (_jitsolver.two_loop_second, t.void(w1, r2, r2, r1, i8, i8, r1)),
-        (_jitsolver.two_loop, t.void(w1, r2, r2, r1, i8, i8, w1, r2, w1)),
+        (_jitsolver.two_loop, t.UniTuple(f8, 2)(r1, r2, r2, r1, i8, i8, w1, r2, w1, w1)),
         (_jitsolver.push_pair, t.boolean(r1, r1, r1, r1, w2, w2, w1, i8)),
+        (_jitsolver.spd_inverse, t.boolean(r2, f8, w2)),
     ]
     for fn, sig in signatures:
         fn.compile(sig)

@@ -90,11 +90,19 @@ def push_pair(x_new, x, g_new, g, s, y, rho, head):
 
 
 @njit(**KERNEL)
-def two_loop(q, s, y, rho, head, count, alphas, h, out):
-    """``out = -H q`` (``q`` is overwritten): both loops around the start matrix ``h``
-    (n, n), or, when ``h`` is empty, the newest pair's scaled identity."""
+def two_loop(g, s, y, rho, head, count, alphas, h, q, out):
+    """``out = -H g``: both loops around the start matrix ``h`` (n, n), or, when ``h`` is
+    empty, the newest pair's scaled identity; ``q`` (n,) is work space. Returns ``max |g|``
+    (NaN where ``g`` has one) and the slope ``g . out``: the step's convergence test and
+    line-search slope, in the same call."""
+    n = len(g)
+    g_max = 0.0
+    for k in range(n):
+        q[k] = g[k]
+        a = abs(g[k])
+        if a > g_max or a != a:  # a NaN stays: nothing is greater than it
+            g_max = a
     _first(q, s, y, rho, head, count, alphas)
-    n = len(q)
     if h.shape[0]:
         for r in range(n):
             v = 0.0
@@ -113,8 +121,11 @@ def two_loop(q, s, y, rho, head, count, alphas, h, out):
         for k in range(n):
             out[k] = scale * q[k]
     _second(out, s, y, rho, head, count, alphas)
+    slope = 0.0
     for k in range(n):
         out[k] = -out[k]
+        slope += g[k] * out[k]
+    return g_max, slope
 
 
 @njit(**KERNEL)
@@ -158,3 +169,48 @@ def _second(q, s, y, rho, head, count, alphas):
         b = alphas[i] - rho[r] * b
         for k in range(q.shape[0]):
             q[k] += b * s[r, k]
+
+
+@njit(**KERNEL)
+def spd_inverse(a, ridge, out):
+    """``out = (A + r I)^-1``, ``r = ridge`` times ``A``'s mean diagonal, for a symmetric
+    ``A`` (n, n; its lower triangle is read) by the Cholesky factor ``L`` and ``W = L^-1``:
+    ``out = W^T W``. False (``out`` undefined) where ``A + r I`` is not positive definite
+    or has a number that is not finite (it reaches a pivot through the factor)."""
+    n = a.shape[0]
+    trace = 0.0
+    for j in range(n):
+        trace += a[j, j]
+    r = ridge * max(trace / max(n, 1), 1e-12)
+    low = np.zeros((n, n))
+    for j in range(n):
+        d = a[j, j] + r
+        for k in range(j):
+            d -= low[j, k] * low[j, k]
+        if not (d > 0.0 and d < math.inf):
+            return False
+        pivot = math.sqrt(d)
+        low[j, j] = pivot
+        for i in range(j + 1, n):
+            v = a[i, j]
+            for k in range(j):
+                v -= low[i, k] * low[j, k]
+            low[i, j] = v / pivot
+    w = np.zeros((n, n))
+    for j in range(n):
+        w[j, j] = 1.0 / low[j, j]
+        for i in range(j + 1, n):
+            v = 0.0
+            for k in range(j, i):
+                v += low[i, k] * w[k, j]
+            w[i, j] = -v / low[i, i]
+    out[:, :] = 0.0
+    for k in range(n):
+        for i in range(k + 1):
+            wi = w[k, i]
+            for j in range(i, k + 1):
+                out[i, j] += wi * w[k, j]
+    for i in range(n):
+        for j in range(i):
+            out[i, j] = out[j, i]
+    return True

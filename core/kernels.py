@@ -12,10 +12,8 @@ What they compute (the same numbers as the NumPy path, to rounding; ``tests/test
   samples, on the first solve of a model);
 - :func:`determinants`: det J at many points, the fold check of every result
   (:mod:`core._jitfolds`);
-- :func:`springs`, :func:`spring_hessian`, :func:`two_loop`, :func:`push_pair`: the
-  spring energy, gradient and Hessian of :class:`core.springs.SpringNetwork` and the
-  L-BFGS recursion and its memory (:mod:`core.lbfgs`), the solver's own work per step
-  (:mod:`core._jitsolver`).
+- the solver's own work per step (:mod:`core._jitsolver`): its entry points are in
+  :mod:`core.stepkernels`.
 
 Each returns None when the compiled kernels are not there (yet); the caller then runs its
 NumPy code. They are there once numba (the ``fast`` extra) imports and has compiled them.
@@ -355,62 +353,6 @@ def determinants(
 
     _jitthreads.run(task, len(ranges))
     return (out, norms) if frobenius else out
-
-
-@_guard
-def springs(x: np.ndarray, starts, ends, rest, stiffness: float, k=None):
-    """(energy, (n, 3) gradient) of the springs ``starts -> ends`` (int64) with rest lengths
-    ``rest`` at the (n, 3) C-ordered float64 nodes ``x``; None: no kernels."""
-    k = k or _kernels()
-    if k is None:
-        return None
-    grad = np.empty(x.shape)
-    return k.spring_energy_gradient(x, starts, ends, rest, stiffness, grad), grad
-
-
-@_guard
-def spring_hessian(x: np.ndarray, starts, ends, rest, stiffness: float, k=None):
-    """(3n, 3n) the springs' Hessian (see :func:`springs`); None: no kernels."""
-    k = k or _kernels()
-    if k is None:
-        return None
-    out = np.empty((3 * len(x), 3 * len(x)))
-    k.spring_hessian(x, starts, ends, rest, stiffness, out)
-    return out
-
-
-_NO_MATRIX = np.zeros((0, 0))
-
-
-@_guard
-def two_loop(pairs, q: np.ndarray, h0, k=None) -> np.ndarray | None:
-    """``-H q`` by the two-loop recursion over ``pairs`` (:class:`core.pairs.Pairs`; ``q``
-    is overwritten): ``h0`` the start matrix's product (one call when it keeps its matrix
-    as ``h0.matrix``), or None for the scaled identity; None: no kernels."""
-    k = k or _kernels()
-    if k is None:
-        return None
-    p = pairs
-    matrix = _NO_MATRIX if h0 is None else getattr(h0, "matrix", None)
-    if matrix is not None:
-        out = np.empty(q.shape)
-        k.two_loop(q, p.s, p.y, p.rho, p.head, p.count, p.alphas, matrix, out)
-        return out
-    k.two_loop_first(q, p.s, p.y, p.rho, p.head, p.count, p.alphas)
-    q = p.start(q, h0)
-    k.two_loop_second(q, p.s, p.y, p.rho, p.head, p.count, p.alphas)
-    return np.negative(q, out=q)
-
-
-@_guard
-def push_pair(pairs, x_new, x, g_new, g, k=None) -> bool | None:
-    """Store ``(x_new - x, g_new - g)`` in ``pairs`` (:class:`core.pairs.Pairs`) at its
-    head when its curvature is positive beyond rounding; whether it was stored (for
-    ``pairs.stored``); None: no kernels."""
-    k = k or _kernels()
-    if k is None:
-        return None
-    return k.push_pair(x_new, x, g_new, g, pairs.s, pairs.y, pairs.rho, pairs.head)
 
 
 if __name__ == "__main__" and sys.argv[1:2] == ["--compile"]:  # see core._jitcache

@@ -17,7 +17,7 @@ from collections.abc import Callable, Generator
 import numpy as np
 from scipy.optimize import line_search
 
-from . import kernels
+from . import stepkernels
 from .pairs import Pairs
 
 #: a preconditioned L-BFGS run that has not converged after this many steps goes on with
@@ -62,15 +62,13 @@ def lbfgs(
     pairs = Pairs(memory, len(x))
     f_old = None
     for it in range(max_iter):
-        g_max = float(np.abs(g).max()) if len(g) else 0.0
+        if it == PRECONDITIONED_STEPS:
+            h0 = None  # see PRECONDITIONED_STEPS
+        d, g_max, slope = _direction(pairs, g, h0)
         if not np.isfinite(g_max):
             raise FloatingPointError("the objective gradient is not finite")
         if g_max <= gtol:
             return x, it, True
-        if it == PRECONDITIONED_STEPS:
-            h0 = None  # see PRECONDITIONED_STEPS
-        d = _direction(pairs, g, h0)
-        slope = float(g @ d)
         if slope >= 0:  # not a descent direction: restart from steepest descent
             pairs.count = 0
             d, h0 = -g, None
@@ -113,15 +111,20 @@ def lbfgs(
     return x, max_iter, False
 
 
-def _direction(pairs: Pairs, g: np.ndarray, h0) -> np.ndarray:
-    """The search direction ``-H g``: compiled where the kernels are ready."""
-    d = kernels.two_loop(pairs, np.array(g, dtype=np.float64), h0)
-    return d if d is not None else pairs.direction(np.array(g, dtype=np.float64), h0)
+def _direction(pairs: Pairs, g: np.ndarray, h0) -> tuple[np.ndarray, float, float]:
+    """The search direction ``d = -H g``, ``max |g|`` and the slope ``g . d`` (one compiled
+    call where the kernels are ready)."""
+    g = np.asarray(g, dtype=np.float64)
+    out = stepkernels.two_loop(pairs, g, h0)
+    if out is not None:
+        return out
+    d = pairs.direction(g.copy(), h0)
+    return d, float(np.abs(g).max()) if len(g) else 0.0, float(g @ d)
 
 
 def _push(pairs: Pairs, x_new, x, g_new, g) -> None:
     """Keep the correction pair of a step: compiled where the kernels are ready."""
-    kept = kernels.push_pair(pairs, x_new, x, g_new, g)
+    kept = stepkernels.push_pair(pairs, x_new, x, g_new, g)
     if kept is None:
         pairs.push(x_new, x, g_new, g)
     else:

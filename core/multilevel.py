@@ -189,10 +189,15 @@ def solve(
         def energy_grad(x):
             e, de = springs.energy_and_gradient(x)
             p, dp = guard.value_and_gradient(x)
+            if p == 0.0:  # no sample within the margin: no penalty, no force
+                return e, de
             return e + p * size**2, de + dp * size**2
 
         def hessian(x):
-            return springs.hessian(x) + guard.gauss_newton(x) * size**2
+            h, near = springs.hessian(x), guard.gauss_newton(x)
+            if near.any():  # (zero where no sample is within the margin)
+                h += near * size**2
+            return h
     else:
         energy_grad, hessian = springs.energy_and_gradient, springs.hessian
     # The preconditioner's curvature, shared by the levels. A solve near the one before (a
@@ -232,10 +237,8 @@ def solve(
         run = augmented_lagrangian(problem, problem.to_y(x), lam, sigma, opts)
 
         def progress(it, k=k, cons=cons, problem=problem):
-            nodes = problem.to_nodes(it.y)  # a new array: read-only from here on
-            nodes.flags.writeable = False
             return Progress(
-                nodes,
+                problem.nodes_of(it.y),
                 k,
                 n_levels,
                 cons.level.triangles,

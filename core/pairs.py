@@ -1,6 +1,6 @@
 """The memory of L-BFGS (:mod:`isochor.core.lbfgs`): the newest correction pairs and the
 two-loop recursion over them, on the NumPy path. The compiled path
-(:func:`isochor.core.kernels.two_loop`, :func:`isochor.core.kernels.push_pair`) works on
+(:func:`isochor.core.stepkernels.two_loop`, :func:`isochor.core.stepkernels.push_pair`) works on
 the same arrays.
 """
 

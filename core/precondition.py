@@ -24,7 +24,10 @@ an ``m x m`` solve instead of a new factorisation:
 
 Up to :data:`EXPLICIT` variables ``M^-1`` is kept as a matrix (one product a step); above
 it, ``A^-1`` is applied by two triangular solves a step and never formed: the inverse of
-2700 variables (a 10x10x10 lattice) costs 0.8 s, the solves 3 ms a step.
+2700 variables (a 10x10x10 lattice) costs 0.8 s, the solves 3 ms a step. Up to
+:data:`core.stepkernels.SMALL_INVERSE` variables ``A^-1`` is one compiled call (SciPy's
+wrappers cost more than the arithmetic there), and with one constraint (the volume alone)
+the Woodbury term is a scalar.
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ from collections.abc import Callable
 import numpy as np
 import scipy.linalg as la
 
+from . import stepkernels
+
 #: added to the diagonal, relative to its mean: keeps rigid motions (zero energy) invertible
 RIDGE = 1e-6
 #: up to this many variables the inverses are explicit matrices (see the module notes)
@@ -42,7 +47,7 @@ EXPLICIT = 400
 
 class Product:
     """``v -> matrix @ v``: an explicit inverse Hessian, which the compiled L-BFGS
-    recursion takes as the matrix itself (:func:`isochor.core.kernels.two_loop`)."""
+    recursion takes as the matrix itself (:func:`isochor.core.stepkernels.two_loop`)."""
 
     __slots__ = ("matrix",)
 
@@ -64,16 +69,21 @@ class Curvature:
     """
 
     def __init__(self, hessian: np.ndarray) -> None:
+        self.count = len(hessian)
+        self._factor, self.inverse = None, None
+        # compiled, for small matrices only (None otherwise; False: not positive definite)
+        small = stepkernels.spd_inverse(hessian, RIDGE) if self.count <= EXPLICIT else None
+        if small is not None:
+            self.inverse = small if isinstance(small, np.ndarray) else None
+            return
         a = np.array(hessian, dtype=np.float64)
-        self.count = len(a)
         ridge = RIDGE * max(float(a.trace()) / max(self.count, 1), 1e-12)
         a.flat[:: self.count + 1] += ridge  # the diagonal
-        self._factor, self.inverse = None, None
         try:
             factor = la.cho_factor(a, lower=True, check_finite=False)
         except (la.LinAlgError, ValueError):
             return
-        if not np.all(np.isfinite(factor[0])):
+        if not _finite(factor[0]):
             return
         self._factor = factor
         if self.count <= EXPLICIT:
@@ -82,7 +92,7 @@ class Curvature:
     @property
     def ok(self) -> bool:
         """``A`` is positive definite (with finite numbers)."""
-        return self._factor is not None
+        return self._factor is not None or self.inverse is not None
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^-1 b`` for ``b`` (count,) or (count, k)."""
@@ -120,17 +130,25 @@ class Preconditioner:
             return None
         if u is None or not sigma > 0:
             return a.solve if a.inverse is None else Product(a.inverse)
-        try:
-            s_inv = np.linalg.inv(np.eye(len(jac)) / sigma + jac @ u)
-        except np.linalg.LinAlgError:
-            return None
-        if not np.all(np.isfinite(s_inv)):
+        if len(jac) == 1:  # the usual case, the volume alone: a scalar, no inverse
+            s_inv = np.array([[1.0 / (1.0 / sigma + float(jac[0] @ u[:, 0]))]])
+        else:
+            try:
+                s_inv = np.linalg.inv(np.eye(len(jac)) / sigma + jac @ u)
+            except np.linalg.LinAlgError:
+                return None
+        if not _finite(s_inv):
             return None
         if a.inverse is not None:
-            m_inv = a.inverse - u @ s_inv @ u.T
-            return Product(m_inv) if np.all(np.isfinite(m_inv)) else None
+            m_inv = a.inverse - (u @ s_inv) @ u.T
+            return Product(m_inv) if _finite(m_inv) else None
 
         def apply(v: np.ndarray) -> np.ndarray:
             return a.solve(v) - u @ (s_inv @ (u.T @ v))
 
         return apply
+
+
+def _finite(a: np.ndarray) -> bool:
+    """Every number of ``a`` finite."""
+    return bool(np.isfinite(a).all())

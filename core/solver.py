@@ -176,7 +176,7 @@ class Coordinates:
         variables, ``matrix @ h @ matrix.T``: a plain selection without ties."""
         if len(self.dst):
             return np.asarray(self.matrix @ (self.matrix @ h).T)
-        return h[np.ix_(self._columns, self._columns)]
+        return h.take(self._columns, axis=0).take(self._columns, axis=1)
 
     @property
     def moving(self) -> np.ndarray:
@@ -234,6 +234,7 @@ class LevelProblem:
         self.curvatures: Curvatures | None = curvatures
         self._preconditioner: Preconditioner | None = None
         self._last: tuple[bytes, tuple] | None = None  # (y's bytes, its terms)
+        self._evaluated: tuple[np.ndarray, np.ndarray] | None = None  # (y, its nodes)
         self.size = self.coords.size
 
     def preconditioner(self, y: np.ndarray, sigma: float):
@@ -265,12 +266,24 @@ class LevelProblem:
         if last is not None and last[0] == key:
             return last[1]
         x = self.to_nodes(y)
+        x.flags.writeable = False  # (handed on by nodes_of)
         e, de = self.energy_grad(x)
         c, dc = self.constraint_grad(x)
         s, reduce = self.size, self.coords.reduce
         out = e / s**2, reduce(de) / s, np.asarray(c, dtype=np.float64), reduce(dc) * s
         self._last = (key, out)
+        self._evaluated = (y, x)
         return out
+
+    def nodes_of(self, y: np.ndarray) -> np.ndarray:
+        """Read-only (n, 3) nodes for ``y``: those its evaluation used when ``y`` is the
+        array evaluated last (an accepted step's, for its progress record), else new."""
+        last = self._evaluated
+        if last is not None and last[0] is y:
+            return last[1]
+        nodes = self.to_nodes(y)
+        nodes.flags.writeable = False
+        return nodes
 
     def deviation(self, y: np.ndarray) -> np.ndarray:
         return self.terms(y)[2]
@@ -278,8 +291,13 @@ class LevelProblem:
     def lagrangian(self, lam: np.ndarray, sigma: float) -> Objective:
         """``y -> (La, dLa/dy, (E, worst c))`` for fixed multipliers and penalty (Eq 19)."""
 
+        lam0 = float(lam[0]) if len(lam) == 1 else None
+
         def fun(y: np.ndarray):
             e, de, c, dc = self.terms(y)
+            if lam0 is not None:  # the usual case, the volume alone: scalars, same numbers
+                c0 = float(c[0])
+                return e + c0 * (0.5 * sigma * c0 - lam0), de + (sigma * c0 - lam0) * dc[0], (e, c0)
             la = e + float(c @ (0.5 * sigma * c - lam))
             return la, de + (sigma * c - lam) @ dc, (e, worst(c))
 

@@ -15,7 +15,7 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
-from . import kernels
+from . import stepkernels
 
 #: Undirected neighbour offsets: 3 axis directions and 4 body diagonals. Each node meets
 #: each offset forwards and backwards, hence 6 + 8 = 14 neighbours.
@@ -97,7 +97,7 @@ class SpringNetwork:
     def energy_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
         """Energy and its gradient ``(nodes, 3)``."""
         nodes = np.ascontiguousarray(nodes, dtype=np.float64)
-        out = kernels.springs(nodes, *self._compiled)
+        out = stepkernels.springs(nodes, *self._compiled)
         if out is not None:
             return out
         d = self._vectors(nodes)
@@ -118,7 +118,7 @@ class SpringNetwork:
         length); the second term is dropped where it is negative (a compressed spring), so
         the matrix stays a valid preconditioner. Exact for every stretched spring."""
         nodes = np.ascontiguousarray(nodes, dtype=np.float64)
-        out = kernels.spring_hessian(nodes, *self._compiled)
+        out = stepkernels.spring_hessian(nodes, *self._compiled)
         if out is not None:
             return out
         d = self._vectors(nodes)
@@ -135,7 +135,7 @@ class SpringNetwork:
 
     @property
     def _compiled(self) -> tuple:
-        """The springs as the compiled kernels take them (:func:`core.kernels.springs`)."""
+        """The springs as the compiled kernels take them (:func:`core.stepkernels.springs`)."""
         return self._starts, self._ends, self.rest_lengths, self.stiffness
 
     @cached_property

@@ -37,6 +37,20 @@ def compression():
     return problem, records, result
 
 
+def test_progress_records_hold_read_only_nodes_of_their_own(compression):
+    """A step's record hands on the nodes its evaluation used (no second copy): each is
+    read-only, no two records share one, and the steps' nodes move from record to record."""
+    problem, records, result = compression
+    assert all(not r.nodes.flags.writeable for r in records)
+    assert len({id(r.nodes) for r in records}) == len(records)
+    steps = [r for r in records if r.step > 0 and not r.level_done]
+    assert sum(not np.array_equal(a.nodes, b.nodes) for a, b in zip(steps, steps[1:])) > 0.9 * (
+        len(steps) - 1
+    )
+    fixed = problem.fixed if problem.fixed.ndim == 2 else problem.fixed[:, None].repeat(3, 1)
+    assert all(np.array_equal(r.nodes[fixed], problem.nodes[fixed]) for r in records)
+
+
 def _layer(lattice, axis, value):
     return np.array([lattice.ijk(r)[axis] == value for r in range(lattice.n_nodes)])
 

@@ -9,13 +9,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from isochor.core import kernels
+from isochor.core import kernels, stepkernels
 from isochor.core.generators import run_to_end
 from isochor.core.lattice import Lattice
 from isochor.core.lbfgs import lbfgs
 from isochor.core.multilevel import solve
 from isochor.core.pairs import Pairs
-from isochor.core.precondition import Product
+from isochor.core.precondition import Curvature, Product
 from isochor.core.problem import build
 from isochor.core.scenario import Scenario
 from isochor.core.springs import SpringNetwork
@@ -61,7 +61,7 @@ def filled(n, pushes, seed, numpy):
         if numpy:
             pairs.push(x_new, x, g_new, g)
         else:
-            pairs.stored(kernels.push_pair(pairs, x_new, x, g_new, g))
+            pairs.stored(stepkernels.push_pair(pairs, x_new, x, g_new, g))
         x, g = x_new, g_new
     return pairs, a
 
@@ -79,9 +79,12 @@ def test_the_memory_and_the_recursion_match_numpy(compiled, pushes):
     g = np.random.default_rng(1).normal(size=n)
     inverse = np.linalg.inv(a)
     for h0 in (None, Product(inverse), inverse.__matmul__):
-        d = kernels.two_loop(fast, g.copy(), h0)
+        kept = g.copy()
+        d, g_max, slope = stepkernels.two_loop(fast, g, h0)
+        assert np.array_equal(g, kept)  # the gradient is left as it was
         d0 = slow.direction(g.copy(), h0)
         assert np.abs(d - d0).max() <= 1e-12 * np.abs(d0).max()
+        assert g_max == np.abs(g).max() and slope == pytest.approx(g @ d0, rel=1e-12)
         if h0 is not None and fast.count == 0:
             assert np.allclose(d, -inverse @ g)  # no pairs: the start matrix alone
         assert g @ d < 0  # a descent direction
@@ -138,3 +141,50 @@ def test_a_solve_keeps_the_path_it_started_on(compiled, first):
             kernels.set_mode(previous)
 
     assert np.array_equal(run(switch=True), run(switch=False))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_the_recursion_reports_a_gradient_that_is_not_finite(compiled, bad):
+    pairs, _ = filled(6, 4, 0, numpy=False)
+    g = np.ones(6)
+    g[2] = bad
+    for h0 in (None, Product(np.eye(6))):
+        _, g_max, _ = stepkernels.two_loop(pairs, g, h0)
+        assert not np.isfinite(g_max)
+
+
+@pytest.mark.parametrize("n", [1, 2, 9, 27, stepkernels.SMALL_INVERSE])
+def test_the_small_inverse_matches_lapack(compiled, n):
+    """The compiled inverse of a small curvature matrix against SciPy's Cholesky path: a
+    stiff, badly scaled matrix with a near-null direction (a free rigid motion), which
+    only the ridge keeps invertible."""
+    rng = np.random.default_rng(n)
+    q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    a = (q * np.geomspace(1e4, 1e-3, n)) @ q.T
+    a[:, -1] = a[-1, :] = 0.0  # a free direction
+    fast = Curvature(a)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(stepkernels, "SMALL_INVERSE", 0)
+        slow = Curvature(a)
+    assert fast.ok and slow.ok and slow._factor is not None and fast._factor is None
+    ridged = a + 1e-6 * max(np.trace(a) / n, 1e-12) * np.eye(n)
+    assert np.abs(fast.inverse @ ridged - np.eye(n)).max() < 1e-6
+    assert np.abs(fast.inverse - slow.inverse).max() <= 1e-8 * np.abs(slow.inverse).max()
+    assert np.array_equal(fast.inverse, fast.inverse.T)
+
+
+@pytest.mark.parametrize("how", ["indefinite", "nan", "inf", "large"])
+def test_the_small_inverse_refuses_what_is_not_positive_definite(compiled, how):
+    n = 12
+    a = np.eye(n) * 2.0
+    if how == "indefinite":
+        a[3, 3] = -1.0
+    elif how in ("nan", "inf"):
+        a[7, 2] = a[2, 7] = np.nan if how == "nan" else np.inf
+    else:  # beyond SMALL_INVERSE: LAPACK's path, which refuses the same way
+        n = stepkernels.SMALL_INVERSE + 5
+        a = np.eye(n)
+        a[0, 0] = -1.0
+    assert stepkernels.spd_inverse(a, 1e-6) is (None if how == "large" else False)
+    curvature = Curvature(a)
+    assert not curvature.ok and curvature.inverse is None
