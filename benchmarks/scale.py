@@ -170,11 +170,13 @@ def armadillo_bend(levels: list[TriMesh], shape=(5, 5, 5), angle_deg: float = 30
 def armadillo_child(path: str, repeats: int) -> dict:
     """Load, pyramid and bend-solve the armadillo; returns the numbers (run in a child,
     ``python -m benchmarks --armadillo-child PLY``, for its own peak memory)."""
+    from isochor.core import kernels
     from isochor.core.meshio import load_mesh
     from isochor.core.pyramid import build_pyramid
 
     out: dict = {"rss_start_mb": peak_rss_mb()}
     t = time.perf_counter()
+    kernels.start()  # as load_model does: the kernels load while the model does
     loaded = load_mesh(path)
     out["load_s"] = time.perf_counter() - t
     t = time.perf_counter()
