@@ -48,6 +48,41 @@ def cells(faces: np.ndarray) -> np.ndarray:
     return np.hstack([np.full((len(faces), 1), faces.shape[1], dtype=np.int64), faces]).ravel()
 
 
+def draw_order(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The triangles in the order they are drawn: along a Morton (Z-order) curve through
+    their first corners, so that triangles near in space come near in the draw order.
+    Software OpenGL (llvmpipe) bins and shades them faster that way, its tiles and caches
+    meeting one region at a time. Off screen, the 346k armadillo's full render: in its
+    file's order 93 ms, shuffled 126 ms, shuffled and then put in this order 90 ms. A
+    file's order is often local already (the armadillo's, a subdivision's); this order
+    keeps every file there. The picture is the same; picking and shading keep the mesh's
+    own order (:attr:`MeshView.faces`). About 25 ms for 346k triangles (the first corner
+    instead of the centroid: the same grid cell but for one in a few, at a seventh of the
+    cost)."""
+    faces = np.asarray(faces, dtype=np.int64)
+    if len(faces) < 2:
+        return np.arange(len(faces))
+    corners = np.asarray(points, dtype=np.float64)[faces[:, 0]]
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    cells = (corners - lo) / np.where(hi > lo, hi - lo, 1.0) * (MORTON_CELLS - 1)
+    code = np.zeros(len(faces), dtype=np.uint64)
+    for axis in range(3):
+        code |= _spread(cells[:, axis].astype(np.uint64)) << np.uint64(axis)
+    return np.argsort(code)
+
+
+#: cells per axis of the draw order's grid (10 bits: a 30-bit Morton code)
+MORTON_CELLS = 1 << 10
+
+
+def _spread(x: np.ndarray) -> np.ndarray:
+    """The low 10 bits of ``x`` spread to every third bit (Morton interleaving)."""
+    x = x & np.uint64(0x3FF)
+    for shift, mask in ((16, 0x30000FF), (8, 0x300F00F), (4, 0x30C30C3), (2, 0x9249249)):
+        x = (x | (x << np.uint64(shift))) & np.uint64(mask)
+    return x
+
+
 def rgb(color: str) -> np.ndarray:
     return np.array(style.hex_to_rgb(color), dtype=np.uint8)
 
@@ -123,7 +158,7 @@ class MeshView:
         self.faces = faces
         self.n_faces = len(faces)
         self.shading = Shading(faces, len(points), center)
-        self.poly = pv.PolyData(np.array(points), cells(faces))
+        self.poly = pv.PolyData(np.array(points), cells(faces[draw_order(points, faces)]))
         self.poly.point_data["colors"] = np.tile(rgb(style.MODEL), (len(points), 1))
         normals, self.volume = self.shading(points)
         self.actor = plotter.add_mesh(

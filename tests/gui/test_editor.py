@@ -85,6 +85,20 @@ def test_window_opens_on_the_default_example_and_renders(window):
     assert distinct_colours(whole) > 50
 
 
+def test_the_view_draws_the_models_own_triangles_in_its_draw_order(window):
+    """The drawn polydata holds exactly the model's triangles, each once, only reordered
+    for the renderer; picking and shading keep the mesh's own order."""
+    model = window.viewport.scene.model
+    drawn = np.asarray(model.full.poly.faces).reshape(-1, 4)
+    assert np.all(drawn[:, 0] == 3)
+    own = np.asarray(model.faces())
+    assert len(drawn) == len(own) == window.state.surface.full.n_faces
+    assert not np.array_equal(drawn[:, 1:], own)  # reordered (the torus is made in rings)
+    assert np.array_equal(np.sort(drawn[:, 1:], axis=0), np.sort(own, axis=0))
+    as_rows = {tuple(f) for f in drawn[:, 1:]}
+    assert as_rows == {tuple(f) for f in own}  # the same triangles, same corner order
+
+
 def test_screenshot_option_writes_a_non_blank_png(themed_app, tmp_path):
     from PySide6.QtGui import QImage
 
