@@ -36,6 +36,7 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.linalg as la
+from scipy.linalg import blas
 
 from . import stepkernels
 
@@ -98,6 +99,12 @@ class Curvature:
         """``A^-1 b`` for ``b`` (count,) or (count, k)."""
         if self.inverse is not None:
             return self.inverse @ b
+        if b.ndim == 1 and b.dtype == np.float64:
+            # a step's product: BLAS's two triangular solves on the (Fortran-ordered)
+            # factor; SciPy's cho_solve checks and copies as much again (1341 variables,
+            # an 8x8x8 lattice: 0.46 against 0.87 ms)
+            low = self._factor[0]
+            return blas.dtrsv(low, blas.dtrsv(low, b, lower=1), lower=1, trans=1)
         return la.cho_solve(self._factor, b, check_finite=False)
 
 
