@@ -46,8 +46,10 @@ WHAT_RATE = "window: redraws while dragging the 346k armadillo (ms a redraw)"
 WHAT_STALL = "window: longest GUI stall, drag and release solve, 346k armadillo"
 WHAT_FINAL = "window: longest GUI stall drawing the released result at full resolution"
 FINAL_WHY = (
-    "one render of the full 346k triangles in software OpenGL, which no step can split "
-    "(preparing them runs in steps)"
+    "one render of the full 346k triangles in software OpenGL (llvmpipe, 2 CPUs: 69-79 ms of "
+    "the gap, the rest Qt's composition), which no step can split (preparing them runs in "
+    "steps); with back-face culling and one light (pictures this editor cannot promise) "
+    "the gap was still 61-63 ms (see the notes)"
 )
 
 
