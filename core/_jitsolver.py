@@ -173,18 +173,14 @@ def _second(q, s, y, rho, head, count, alphas):
 
 @njit(**KERNEL)
 def spd_inverse(a, ridge, out):
-    """``out = (A + r I)^-1``, ``r = ridge`` times ``A``'s mean diagonal, for a symmetric
-    ``A`` (n, n; its lower triangle is read) by the Cholesky factor ``L`` and ``W = L^-1``:
-    ``out = W^T W``. False (``out`` undefined) where ``A + r I`` is not positive definite
-    or has a number that is not finite (it reaches a pivot through the factor)."""
+    """``out = (A + ridge I)^-1`` for a symmetric ``A`` (n, n; its lower triangle is read),
+    by the Cholesky factor ``L`` and ``W = L^-1``: ``out = W^T W``. False (``out``
+    undefined) where ``A + ridge I`` is not positive definite or has a number that is not
+    finite (it reaches a pivot through the factor)."""
     n = a.shape[0]
-    trace = 0.0
-    for j in range(n):
-        trace += a[j, j]
-    r = ridge * max(trace / max(n, 1), 1e-12)
     low = np.zeros((n, n))
     for j in range(n):
-        d = a[j, j] + r
+        d = a[j, j] + ridge
         for k in range(j):
             d -= low[j, k] * low[j, k]
         if not (d > 0.0 and d < math.inf):

@@ -70,15 +70,15 @@ class Curvature:
     """
 
     def __init__(self, hessian: np.ndarray) -> None:
-        self.count = len(hessian)
+        a = np.array(hessian, dtype=np.float64)
+        self.count = len(a)
         self._factor, self.inverse = None, None
+        ridge = RIDGE * max(float(a.trace()) / max(self.count, 1), 1e-12)
         # compiled, for small matrices only (None otherwise; False: not positive definite)
-        small = stepkernels.spd_inverse(hessian, RIDGE) if self.count <= EXPLICIT else None
+        small = stepkernels.spd_inverse(a, ridge) if self.count <= EXPLICIT else None
         if small is not None:
             self.inverse = small if isinstance(small, np.ndarray) else None
             return
-        a = np.array(hessian, dtype=np.float64)
-        ridge = RIDGE * max(float(a.trace()) / max(self.count, 1), 1e-12)
         a.flat[:: self.count + 1] += ridge  # the diagonal
         try:
             factor = la.cho_factor(a, lower=True, check_finite=False)

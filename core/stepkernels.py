@@ -90,9 +90,9 @@ def push_pair(pairs, x_new, x, g_new, g, k=None) -> bool | None:
 
 @_guard
 def spd_inverse(a: np.ndarray, ridge: float, k=None) -> np.ndarray | bool | None:
-    """``(A + r I)^-1`` for a symmetric (n, n) ``A`` of at most :data:`SMALL_INVERSE` rows,
-    ``r = ridge`` times its mean diagonal; False where that is not positive definite (or
-    not finite); None: no kernels, or ``A`` too large (LAPACK is faster there)."""
+    """``(A + ridge I)^-1`` for a symmetric (n, n) ``A`` of at most :data:`SMALL_INVERSE`
+    rows; False where that is not positive definite (or not finite); None: no kernels, or
+    ``A`` too large (LAPACK is faster there)."""
     if len(a) > SMALL_INVERSE:
         return None
     k = k or _kernels()
