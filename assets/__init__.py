@@ -4,7 +4,8 @@
   with 4096 triangles, outward wound;
 - ``club.obj``: the paper's rounded club at its level with 5120 triangles, outward wound;
 - ``examples/<name>.json``: one scenario file per built-in example of
-  :data:`isochor.core.examples.EXAMPLES` (they name the built-in models, ``{"builtin": ...}``);
+  :data:`isochor.core.scenario.examples.EXAMPLES` (they name the built-in models,
+  ``{"builtin": ...}``);
 - ``icon.png``: the 256x256 application icon.
 
 All of them are generated, byte for byte reproducibly, by ``make_assets.py`` next to this
@@ -22,7 +23,7 @@ from pathlib import Path
 #: The folder of the shipped files (this package's folder).
 ASSETS_DIR: Path = Path(__file__).resolve().parent
 
-#: The example names, in the order of :data:`isochor.core.examples.EXAMPLES` (kept as a
+#: The example names, in the order of :data:`isochor.core.scenario.examples.EXAMPLES` (kept as a
 #: literal so this module does not import numpy; a test checks that the two agree).
 EXAMPLE_NAMES: tuple[str, ...] = (
     "torus-compression",
@@ -52,7 +53,7 @@ __all__ = [
 
 def example_files() -> dict[str, Path]:
     """Example name -> its scenario file (``examples/<name>.json``), in the order of
-    :data:`isochor.core.examples.EXAMPLES`."""
+    :data:`isochor.core.scenario.examples.EXAMPLES`."""
     return {name: ASSETS_DIR / EXAMPLES_SUBDIR / f"{name}.json" for name in EXAMPLE_NAMES}
 
 

@@ -7,7 +7,7 @@ Usage::
 
 ``OUT_DIR`` defaults to this script's folder (``assets/``). The output is deterministic: every
 run writes byte-identical files (OBJ numbers in a fixed ``%.9g`` format, JSON from
-:meth:`isochor.core.scenario.Scenario.write`, a PNG without timestamps). Files are written
+:meth:`isochor.core.scenario.document.Scenario.write`, a PNG without timestamps). Files are written
 atomically, so an interrupted run leaves the previous files whole.
 """
 
@@ -22,10 +22,10 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from isochor.assets import EXAMPLE_NAMES, EXAMPLES_SUBDIR, ICON_FILE, MODEL_FILES
-from isochor.core.atomic import atomic_write_bytes, atomic_write_text
-from isochor.core.examples import EXAMPLES, example_scenario
+from isochor.core.io.atomic import atomic_write_bytes, atomic_write_text
 from isochor.core.mesh import TriMesh
-from isochor.core.shapes import club_levels, torus_levels
+from isochor.core.scenario.examples import EXAMPLES, example_scenario
+from isochor.core.scenario.shapes import club_levels, torus_levels
 
 #: This script's folder, the default output folder.
 HERE = Path(__file__).resolve().parent
@@ -123,7 +123,7 @@ def write_assets(out_dir: str | Path = HERE) -> list[Path]:
     example, ``out_dir/icon.png``."""
     if tuple(EXAMPLES) != EXAMPLE_NAMES:
         raise RuntimeError(
-            "isochor.assets.EXAMPLE_NAMES differs from isochor.core.examples.EXAMPLES; "
+            "isochor.assets.EXAMPLE_NAMES differs from isochor.core.scenario.examples.EXAMPLES; "
             f"update it to {tuple(EXAMPLES)!r}"
         )
     out = Path(out_dir)

@@ -15,7 +15,7 @@ before NumPy is imported (unless they are set already, and then the report says 
 
 Definitions (as in the paper):
 
-* T2: the multi-level solve (``isochor.core.multilevel.solve``), from the first ``next()``
+* T2: the multi-level solve (``isochor.core.solve.multilevel.solve``), from the first ``next()``
   to the returned result, on a surface whose levels are already set up (the editor keeps
   them per document). "cold" is the first solve on a fresh surface, which also sets the
   levels up.

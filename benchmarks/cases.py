@@ -9,11 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from isochor.core.generators import run_to_end
 from isochor.core.lattice import Lattice
 from isochor.core.mesh import TriMesh
-from isochor.core.multilevel import EmbeddedSurface, Progress, SolveResult, solve
-from isochor.core.solver import SolverOptions
+from isochor.core.solve.generators import run_to_end
+from isochor.core.solve.multilevel import EmbeddedSurface, Progress, SolveResult, solve
+from isochor.core.solve.solver import SolverOptions
 
 #: the examples of the paper's Table 1 that ship with Isochor (the cow needs a model file)
 EXAMPLES = ("torus-compression", "torus-stretch", "club-compression")
@@ -122,9 +122,9 @@ class Case:
 
 
 def example_case(name: str) -> Case:
-    """One of the built-in examples (``isochor.core.examples``)."""
-    from isochor.core.examples import example_scenario
-    from isochor.core.problem import build
+    """One of the built-in examples (``isochor.core.scenario.examples``)."""
+    from isochor.core.scenario.examples import example_scenario
+    from isochor.core.scenario.problem import build
 
     p = build(example_scenario(name))
     return Case(name, p.surface.lattice, list(p.surface.levels), p.nodes, p.fixed, p.options)
@@ -135,10 +135,10 @@ def cow_case(models: Path) -> tuple[Case | None, str]:
     if not (models / "cow.obj").is_file():
         return None, f"cow row skipped: {models / 'cow.obj'} not found"
     try:
-        from isochor.core.paper_models import cow_bend_scenario
-        from isochor.core.problem import build
+        from isochor.core.scenario.paper_models import cow_bend_scenario
+        from isochor.core.scenario.problem import build
     except ImportError as exc:
-        return None, f"cow row skipped: {exc} (isochor.core.paper_models)"
+        return None, f"cow row skipped: {exc} (isochor.core.scenario.paper_models)"
     p = build(cow_bend_scenario(models))
     note = "levels " + ", ".join(str(m.n_faces) for m in p.surface.levels)
     case = Case(

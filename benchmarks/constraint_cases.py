@@ -33,10 +33,10 @@ from benchmarks.constraints import (
     console_line,
     time_pair,
 )
-from isochor.core.constraints import Goal
+from isochor.core.goal.constraints import Goal
 from isochor.core.mesh import TriMesh
-from isochor.core.problem import Model, Problem, build, default_lattice_shape, load_model
-from isochor.core.scenario import Move, Scenario
+from isochor.core.scenario.document import Move, Scenario
+from isochor.core.scenario.problem import Model, Problem, build, default_lattice_shape, load_model
 
 
 def _problem(model: Model, name: str, **scenario) -> Problem:
@@ -71,7 +71,7 @@ def anchor_pair(model: Model, key: str, name: str) -> Pair:
 
 
 def squash_problem(model: Model, name: str, shape=(4, 3, 3)) -> Problem:
-    """``core.paper_models.squash_scenario`` on an in-memory model: the top node layer down
+    """``core.scenario.paper_models.squash_scenario`` on an in-memory model: the top node layer down
     by :data:`SQUASH` of the lattice height, the bottom layer pinned."""
     from isochor.core.defaults import PADDING
     from isochor.core.lattice import Lattice
@@ -141,16 +141,16 @@ class Models:
 
 
 def _bend(model: Model) -> Problem:
-    """``core.paper_models.bend_scenario`` (5x2x2 lattice along x, the +x layer turned 40
+    """``core.scenario.paper_models.bend_scenario`` (5x2x2 lattice along x, the +x layer turned 40
     degrees about z, the -x layer pinned; the cow's is ``cow_bend_scenario``) on a loaded
     model file."""
-    from isochor.core.paper_models import bend_scenario
+    from isochor.core.scenario.paper_models import bend_scenario
 
     return build(bend_scenario(model.source.path), model=model)
 
 
 def _two_sphere_model(subdivisions: int) -> Model:
-    from isochor.core.pyramid import build_pyramid
+    from isochor.core.solve.pyramid import build_pyramid
 
     return Model(tuple(build_pyramid(two_spheres(subdivisions))))
 
@@ -184,7 +184,7 @@ def pairs(
     """The cases in table order: (name, a function that builds the pair, or None and why
     not). ``quick`` leaves out :data:`SLOW` and makes the spheres smaller; ``tiny`` (tests)
     makes the built-in shapes smaller still and cuts every pyramid at 400 triangles."""
-    from isochor.core.shapes import torus_levels
+    from isochor.core.scenario.shapes import torus_levels
 
     shared = Models(models, 400 if tiny else None)
     spheres = 2 if tiny else (3 if quick else 4)

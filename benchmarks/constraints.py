@@ -6,7 +6,7 @@ tolerances); each is run once untimed (the levels, and the constraint's own setu
 guard's sample gradients, the bodies' shells, the first moment), then the repeats alternate
 with / without, so a busy spell hits both alike. The times are medians; "first" is the
 untimed solve with the constraint, which holds its setup. The measured quantities come from
-the full mesh at the end of the solve (:mod:`isochor.core.outcome`).
+the full mesh at the end of the solve (:mod:`isochor.core.solve.outcome`).
 
 This module: the pairs, the rows, timing and measuring a pair, a row in words. The cases
 are :mod:`benchmarks.constraint_cases`, the Markdown :mod:`benchmarks.constraints_report`.
@@ -20,9 +20,9 @@ import numpy as np
 
 from benchmarks.cases import run_solve
 from benchmarks.timing import Timing
-from isochor.core.constraints import Goal
-from isochor.core.multilevel import EmbeddedSurface, SolveResult
-from isochor.core.solver import SolverOptions
+from isochor.core.goal.constraints import Goal
+from isochor.core.solve.multilevel import EmbeddedSurface, SolveResult
+from isochor.core.solve.solver import SolverOptions
 
 HEADING = "## Constraints: what each one costs"
 #: the anchor cases: the corner drag, in lattice sizes

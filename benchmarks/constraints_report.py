@@ -119,7 +119,7 @@ def write_section(
     """Replace (or add) the section ``heading`` of the report at ``out``, keeping the rest;
     a new file gets the section and the hand-written marker (the first of ``markers``:
     :data:`benchmarks.report.KEEP_MARKER`, then the ones earlier versions wrote)."""
-    from isochor.core.atomic import atomic_write_text
+    from isochor.core.io.atomic import atomic_write_text
 
     try:
         text = out.read_text(encoding="utf-8")

@@ -31,9 +31,9 @@ from benchmarks.scale import ARMADILLO, SCALE_TORI, scale_row
 from benchmarks.tables import table1_row
 from benchmarks.timing import Timing, kernel_status
 from isochor.core import kernels
-from isochor.core.examples import example_scenario
-from isochor.core.problem import build, load_model
-from isochor.core.shapes import torus
+from isochor.core.scenario.examples import example_scenario
+from isochor.core.scenario.problem import build, load_model
+from isochor.core.scenario.shapes import torus
 
 HEADING = "## Display rate (issue 9)"
 LOAD_WHY = (
@@ -213,7 +213,7 @@ def section(rows: list[Row], notes: list[str], command: str, repeats: int) -> li
         "finest level with at most `SolverOptions.live_triangles` triangles, never touching",
         "the full mesh; the solve on release measures the full mesh (volume, folds). Both",
         "start each L-BFGS run from the springs' Hessian and the penalty's Gauss-Newton term",
-        "(`core/precondition.py`); 'without the preconditioner' is the same run as before.",
+        "(`core/solve/precondition.py`); 'without the preconditioner' is the same run as before.",
         "",
         "| what | ms | target | |",
         "|---|---|---|---|",

@@ -1,7 +1,7 @@
 """What the Display rate section measures (issue 9): a drag's frames, the solve at its end,
 the first progress record, the solver's own work per step, the dense lattice.
 
-Each function takes a built :class:`isochor.core.problem.Problem` and returns timings in
+Each function takes a built :class:`isochor.core.scenario.problem.Problem` and returns timings in
 seconds; :mod:`benchmarks.display` turns them into rows with targets.
 """
 
@@ -16,12 +16,12 @@ import numpy as np
 
 from benchmarks.scale import ARMADILLO
 from benchmarks.timing import Timing
-from isochor.core.constraints import Constraints
-from isochor.core.folds import FoldGuard
-from isochor.core.generators import run_to_end
-from isochor.core.multilevel import EmbeddedSurface, solve
-from isochor.core.problem import build, default_lattice_shape, load_model
-from isochor.core.scenario import Scenario
+from isochor.core.goal.constraints import Constraints
+from isochor.core.goal.folds import FoldGuard
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.problem import build, default_lattice_shape, load_model
+from isochor.core.solve.generators import run_to_end
+from isochor.core.solve.multilevel import EmbeddedSurface, solve
 
 #: a drag frame moves the dragged node by this much of the lattice size
 FRAME_MOVE = 0.003

@@ -6,7 +6,7 @@ that closes the first level, from that to the record that closes the next level,
 on, and from the last level's record to the result. Per segment and for the whole solve
 the profiler's call counts and cumulative times of a few public functions are read
 (:data:`WATCHED`), matched by their code objects. Per-level steps and level times come from
-the :class:`~isochor.core.multilevel.LevelStats` of the result.
+the :class:`~isochor.core.solve.multilevel.LevelStats` of the result.
 
 A segment holds a level's own work and, before it, what the solve does between two levels
 (the stopping test of the level before, the setup of this level's problem): a coarser
@@ -26,10 +26,10 @@ from dataclasses import dataclass, field
 import scipy.optimize
 
 from benchmarks.cases import Case, run_solve
-from isochor.core.generators import run_to_end
 from isochor.core.lattice import PointBasis
-from isochor.core.multilevel import Progress, SolveResult, solve
-from isochor.core.solver import SolverOptions
+from isochor.core.solve.generators import run_to_end
+from isochor.core.solve.multilevel import Progress, SolveResult, solve
+from isochor.core.solve.solver import SolverOptions
 from isochor.core.springs import SpringNetwork
 from isochor.core.volume import VolumeOperator
 

@@ -16,7 +16,7 @@ from benchmarks.scale import ROOT, ScaleRow
 from benchmarks.tables import PAPER_TABLE2, LevelRow, SweepRow, Table1Row
 from benchmarks.targets import Target
 from benchmarks.timing import Timing, peak_rss_mb
-from isochor.core.atomic import atomic_write_text
+from isochor.core.io.atomic import atomic_write_text
 
 DEFAULT_OUT = ROOT / "docs" / "BENCHMARKS.md"
 #: a hand-written part of BENCHMARKS.md after this line is kept when the file is rewritten
@@ -304,8 +304,8 @@ def _scale(r: Results, lines: list[str]) -> None:
     if r.scale:
         lines.append("## Scale: one volume + gradient evaluation\n")
         lines.append(
-            "Torus meshes (`core.shapes.torus`), random node positions. eval: basis apply, "
-            "volume and gradient, basis transpose (what one solver step costs on that "
+            "Torus meshes (`core.scenario.shapes.torus`), random node positions. eval: basis "
+            "apply, volume and gradient, basis transpose (what one solver step costs on that "
             "level); volume: the vertex-space part alone; reference: the straightforward "
             "NumPy version Isochor had before (per-face `np.cross`, sparse gather), same "
             "numbers to 1e-10.\n"
@@ -327,7 +327,7 @@ def _scale(r: Results, lines: list[str]) -> None:
     if a:
         lines.append("## Scale: the 346k-triangle armadillo, 5x5x5 lattice, a bend\n")
         lines.append(
-            "Child process: `core.meshio.load_mesh`, `core.pyramid.build_pyramid`, "
+            "Child process: `core.io.meshio.load_mesh`, `core.solve.pyramid.build_pyramid`, "
             "then the bend (first node layer along the longest axis pinned, the last "
             "turned 30 degrees). Peak memory is the child's peak RSS.\n"
         )

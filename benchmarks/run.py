@@ -130,7 +130,7 @@ def figures_for(
 
 
 def scale_rows(quick: bool, repeats: int) -> list[ScaleRow]:
-    from isochor.core.shapes import torus
+    from isochor.core.scenario.shapes import torus
 
     rows = []
     for n in [4096, 65536] if quick else list(SCALE_TORI):

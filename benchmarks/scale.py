@@ -18,14 +18,14 @@ from benchmarks.cases import run_solve
 from benchmarks.timing import Timing, peak_rss_mb, time_call
 from isochor.core.lattice import Lattice
 from isochor.core.mesh import TriMesh
-from isochor.core.multilevel import EmbeddedSurface
-from isochor.core.solver import SolverOptions
+from isochor.core.solve.multilevel import EmbeddedSurface
+from isochor.core.solve.solver import SolverOptions
 from isochor.core.volume import VolumeOperator
 
 #: the repository (the folder that holds ``benchmarks/``)
 ROOT = Path(__file__).resolve().parents[1]
 ARMADILLO = "armadillo_loop1_346k.ply"
-#: triangles -> (nu, nv) of ``isochor.core.shapes.torus``: 2 nu nv triangles
+#: triangles -> (nu, nv) of ``isochor.core.scenario.shapes.torus``: 2 nu nv triangles
 SCALE_TORI = {4096: (64, 32), 65536: (256, 128), 262144: (512, 256), 1048576: (1024, 512)}
 
 
@@ -171,8 +171,8 @@ def armadillo_child(path: str, repeats: int) -> dict:
     """Load, pyramid and bend-solve the armadillo; returns the numbers (run in a child,
     ``python -m benchmarks --armadillo-child PLY``, for its own peak memory)."""
     from isochor.core import kernels
-    from isochor.core.meshio import load_mesh
-    from isochor.core.pyramid import build_pyramid
+    from isochor.core.io.meshio import load_mesh
+    from isochor.core.solve.pyramid import build_pyramid
 
     out: dict = {"rss_start_mb": peak_rss_mb()}
     t = time.perf_counter()

@@ -1,5 +1,5 @@
 """The Sequences section: a keyframed timeline solved frame by frame, warm-started from the
-frame before (:func:`isochor.core.sequence.solve_sequence`), against solving every frame's
+frame before (:func:`isochor.core.scenario.sequence.solve_sequence`), against solving every frame's
 edit cold, in the same run: "cold" from the rest lattice on the prepared surface (the levels'
 bases built), and "fresh" as 24 separate runs would (each loading the model, building its
 pyramid and solving). The target is on the fresh column: a timeline must cost far less than
@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.timing import Timing
-from isochor.core.generators import run_to_end
-from isochor.core.multilevel import solve
-from isochor.core.problem import build
-from isochor.core.scenario import Scenario
-from isochor.core.sequence import solve_sequence
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.problem import build
+from isochor.core.scenario.sequence import solve_sequence
+from isochor.core.solve.generators import run_to_end
+from isochor.core.solve.multilevel import solve
 
 HEADING = "## Sequences: keyframed poses against cold solves"
 #: the target: the whole timeline costs at most this fraction of its frames solved fresh

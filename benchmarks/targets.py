@@ -10,7 +10,7 @@ import numpy as np
 from benchmarks.constraints import ConstraintRow
 from benchmarks.scale import ScaleRow
 from benchmarks.tables import Table1Row
-from isochor.core.constraints import CENTROID_SCALE
+from isochor.core.goal.constraints import CENTROID_SCALE
 
 
 @dataclass
@@ -87,7 +87,7 @@ WHY = {
         "digits), np.add.at and bincount scatters, complex-number and rolled-row cross "
         "products, scipy's multi-vector csc_matvecs (20x slower)."
     ),
-    "armadillo_load": "Loading and the QEM pyramid are core.meshio / core.pyramid.",
+    "armadillo_load": "Loading and the QEM pyramid are core.io.meshio / core.solve.pyramid.",
     "armadillo_solve": (
         "The first solve sets the levels up: the fold guard's interior samples (winding "
         "numbers, compiled when the kernels are there) and the level's bases; later solves "
@@ -96,7 +96,7 @@ WHY = {
     "memory": "",
     "anchor": (
         "The far-side rule holds a face only while the fixed coordinates leave the lattice "
-        "free to move rigidly (core/anchor.py); a far layer that moves means the case pinned "
+        "free to move rigidly (core/goal/anchor.py); a far layer that moves means the case pinned "
         "enough to hold the lattice itself, or the rule chose another face."
     ),
     "fold_free": (
@@ -111,9 +111,9 @@ WHY = {
         "guard became 3-4 times faster with the preconditioner, the guarded one less, so "
         "the ratio grew although both are faster than before. Where the guard never acts "
         "(the cow bend) it is skipped: after a full evaluation a bound on how far det J "
-        "can move with the nodes answers 0 without evaluating (core/folds.py, "
+        "can move with the nodes answers 0 without evaluating (core/goal/folds.py, "
         "FoldGuard._inactive), and a preconditioned run stops using its start's "
-        "curvature after 40 steps (core/lbfgs.py), which the guard's curvature outdates."
+        "curvature after 40 steps (core/solve/lbfgs.py), which the guard's curvature outdates."
     ),
     "per_body": (
         "Each body's constraint is normalised by that body's own rest volume, so a small "

@@ -287,9 +287,9 @@ def one_drag(app, win, row: int, meter: _Meter) -> dict:
 def _measure(path: Path, repeats: int) -> list[dict]:
     from PySide6.QtWidgets import QApplication
 
-    from isochor.app import style
-    from isochor.app.document import Document
-    from isochor.app.mainwindow import MainWindow
+    from isochor.app.editor.document import Document
+    from isochor.app.view import style
+    from isochor.app.window.mainwindow import MainWindow
 
     app = QApplication.instance() or QApplication([])
     style.apply_dark_theme(app)

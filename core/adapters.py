@@ -12,9 +12,9 @@ from typing import Any
 import numpy as np
 
 from .errors import IsochorError
-from .formats import WRITE_FORMATS, listing
+from .io.formats import WRITE_FORMATS, listing
+from .io.meshio import mesh_bytes
 from .mesh import TriMesh
-from .meshio import mesh_bytes
 
 
 class CallerMesh:

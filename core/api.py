@@ -10,7 +10,7 @@ Two entry points, both re-exported by the package (``import isochor``):
   move, pin and unpin nodes, solve (to the end or step by step), export, save the
   scenario. :func:`load` opens a model or scenario file as a session.
 
-The solver works on a welded, checked copy of the surface (:mod:`isochor.core.repair`);
+The solver works on a welded, checked copy of the surface (:mod:`isochor.core.io.repair`);
 the FFD, a map of space, then moves the caller's own vertices. No Qt or VTK is imported
 here: a ``pyvista.PolyData`` is handled through its own methods.
 """
@@ -25,25 +25,25 @@ from typing import Any
 import numpy as np
 
 from .adapters import CallerMesh
-from .atomic import atomic_write_bytes
-from .constraints import Goal
 from .errors import IsochorError
 from .export import export_file
-from .formats import is_scenario
-from .generators import run_to_end
-from .handles import Handle
+from .goal.constraints import Goal
+from .goal.handles import Handle
+from .io.atomic import atomic_write_bytes
+from .io.formats import is_scenario
+from .io.repair import clean_closed_surface
 from .lattice import Lattice
 from .mesh import TriMesh
-from .multilevel import solve as solve_levels
-from .poses import Pose, Timeline
-from .problem import Model, Problem, build, default_lattice_shape, scenario_model
-from .pyramid import build_pyramid
-from .records import Progress, SolveResult
-from .repair import clean_closed_surface
 from .report import make_report
-from .scenario import VERSION, Move, Scenario
-from .sequence import Sequence as Solved
-from .sequence import solve_sequence
+from .scenario.document import VERSION, Move, Scenario
+from .scenario.poses import Pose, Timeline
+from .scenario.problem import Model, Problem, build, default_lattice_shape, scenario_model
+from .scenario.sequence import Sequence as Solved
+from .scenario.sequence import solve_sequence
+from .solve.generators import run_to_end
+from .solve.multilevel import solve as solve_levels
+from .solve.pyramid import build_pyramid
+from .solve.records import Progress, SolveResult
 
 Node = tuple[int, int, int]
 
@@ -57,7 +57,7 @@ class Deformed:
     mesh : the input deformed, of the input's type: a ``(vertices, faces)`` tuple, a
         ``trimesh.Trimesh`` or a ``pyvista.PolyData`` (a new object; the input is unchanged)
     report : the solve's report, the same dict ``isochor solve --report`` writes
-    result : the solver's :class:`~isochor.core.records.SolveResult` (final lattice nodes,
+    result : the solver's :class:`~isochor.core.solve.records.SolveResult` (final lattice nodes,
         volumes, levels)
     """
 
@@ -244,7 +244,7 @@ class Session:
 
     def frames(self, start=None, end=None, *, rate=24.0, interpolation="linear") -> Solved:
         """Solve every frame of the keyed poses (each warm-started from the one before);
-        returns the :class:`~isochor.core.sequence.Sequence` (``.frames``, each with its
+        returns the :class:`~isochor.core.scenario.sequence.Sequence` (``.frames``, each with its
         ``frame`` and ``result``)."""
         timeline = self.timeline(start, end, rate=rate, interpolation=interpolation)
         problem = replace(self.problem, scenario=self.scenario().with_(timeline=timeline))
@@ -256,7 +256,7 @@ class Session:
 
     # -- solving -----------------------------------------------------------------------------
     def steps(self) -> Generator[Progress, None, SolveResult]:
-        """Solve step by step: yields a :class:`~isochor.core.records.Progress` record per
+        """Solve step by step: yields a :class:`~isochor.core.solve.records.Progress` record per
         inner step and level, returns the result; the session's nodes become the result's.
         Closing the generator stops the solve and keeps the nodes as they were."""
         result = yield from solve_levels(
@@ -386,8 +386,8 @@ def deform(
         ``{"node": [i, j, k], "by": [...]}`` / ``{"node": ..., "to": [...]}``
     pins : nodes kept where they rest, or ``{"node": (i, j, k), "axes": "z"}`` for a node
         kept on some axes only
-    handles : ``{"at": [x, y, z], "to": [x, y, z]}`` (or :class:`~isochor.core.handles.Handle`):
-        the mesh's point ``at`` must land at ``to``
+    handles : ``{"at": [x, y, z], "to": [x, y, z]}`` (or
+        :class:`~isochor.core.goal.handles.Handle`): the mesh's point ``at`` must land at ``to``
     target : the volume to reach relative to the mesh's
     options : ``padding``, ``frame``, ``preserve``, ``keep_centroid``, ``anchor``,
         ``fold_guard``, ``symmetry``: see :class:`Session`

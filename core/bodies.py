@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels
-from ._winding import half_solid_angle
+from .kernels.winding import half_solid_angle
 
 #: above this many (point, triangle) pairs the containment and overlap tests are skipped
 BUDGET = 50_000_000

@@ -8,7 +8,7 @@ not to the welded and repaired copy the solver works on:
   with its positions deformed and its normals transformed (the inverse transpose of the
   deformation's Jacobian), everything else kept: vertex count and order, texture
   coordinates, polygons, groups, materials, extra properties
-  (:mod:`isochor.core.roundtrip`, :mod:`isochor.core.gltf`); a glTF can instead carry the
+  (:mod:`isochor.core.io.roundtrip`, :mod:`isochor.core.io.gltf`); a glTF can instead carry the
   deformation as a morph target on the original mesh;
 - **another format, or a built-in shape**: the deformed solver mesh (welded, triangles) is
   written fresh, and a note says what of the model's own file that format does not carry.
@@ -23,12 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import check_outputs, write_outputs
 from .errors import IsochorError
-from .formats import GLTF_FORMATS, WRITE_FORMATS, listing
+from .io.atomic import check_outputs, write_outputs
+from .io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
+from .io.meshio import mesh_bytes
 from .mesh import TriMesh
-from .meshio import mesh_bytes
-from .problem import Problem
+from .scenario.problem import Problem
 
 
 @dataclass(frozen=True)
@@ -130,7 +130,7 @@ def _rewrite(
 ) -> Exported:
     suffix = source.suffix.lower()
     if suffix in GLTF_FORMATS:
-        from .gltf import rewrite_gltf
+        from .io.gltf import rewrite_gltf
 
         new, notes = rewrite_gltf(
             data,
@@ -143,7 +143,7 @@ def _rewrite(
             out_suffix=out.suffix.lower(),  # .glb <-> .gltf: the same content
         )
         return Exported(new, list(notes))
-    from .roundtrip import rewrite
+    from .io.roundtrip import rewrite
 
     done = rewrite(
         data,
@@ -196,7 +196,7 @@ def _lost(problem: Problem, out: Path) -> list[str]:
     elif suffix in GLTF_FORMATS:
         held = ["texture coordinates, normals, materials and node hierarchy"]
     if suffix not in GLTF_FORMATS:
-        from .roundtrip import positions
+        from .io.roundtrip import positions
 
         try:
             raw = len(positions(data, suffix, name=source.name))

@@ -7,9 +7,9 @@ from typing import Any
 
 import numpy as np
 
-from .problem import Problem
-from .records import SolveResult
-from .repair import count_bodies
+from .io.repair import count_bodies
+from .scenario.problem import Problem
+from .solve.records import SolveResult
 
 
 def make_report(
@@ -86,7 +86,7 @@ def make_report(
 
 
 def sequence_report(problem: Problem, seq, source: str, time_s: float) -> dict[str, Any]:
-    """The JSON report of a solved sequence (:func:`isochor.core.sequence.solve_sequence`):
+    """The JSON report of a solved sequence (:func:`isochor.core.scenario.sequence.solve_sequence`):
     one row per frame and per key, and the top-level fields of :func:`make_report` for the
     whole sequence at its worst (``converged`` only if every frame did, the largest
     ``target_error``, the most folded frame, the first failing frame's message); ``nodes``

@@ -15,7 +15,7 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
-from . import stepkernels
+from .kernels import step as stepkernels
 
 #: Undirected neighbour offsets: 3 axis directions and 4 body diagonals. Each node meets
 #: each offset forwards and backwards, hence 6 + 8 = 14 neighbours.
@@ -135,7 +135,7 @@ class SpringNetwork:
 
     @property
     def _compiled(self) -> tuple:
-        """The springs as the compiled kernels take them (:func:`core.stepkernels.springs`)."""
+        """The springs as the compiled kernels take them (:func:`core.kernels.step.springs`)."""
         return self._starts, self._ends, self.rest_lengths, self.stiffness
 
     @cached_property

@@ -33,7 +33,7 @@ Everything is float64: results equal the per-face formula to rounding.
 
 Once :mod:`core.kernels` has its compiled kernels (numba, optional), the evaluations run
 there instead: vertex by vertex over the *fans* of faces around each vertex, with no
-scatter (:mod:`core._jitvolume`), the same numbers to rounding (closer to exact on large
+scatter (:mod:`core.kernels.volume`), the same numbers to rounding (closer to exact on large
 models: the fans' cross products are of edge vectors, not of positions).
 """
 

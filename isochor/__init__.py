@@ -31,8 +31,8 @@ _API = {
     "Deformed": "isochor.core.api",
     "Session": "isochor.core.api",
     "load": "isochor.core.api",
-    "Scenario": "isochor.core.scenario",
-    "Move": "isochor.core.scenario",
+    "Scenario": "isochor.core.scenario.document",
+    "Move": "isochor.core.scenario.document",
     "IsochorError": "isochor.core.errors",
 }
 

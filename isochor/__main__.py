@@ -1,5 +1,5 @@
 """``python -m isochor``: the same as the ``isochor`` command."""
 
-from isochor.app.cli import entry
+from isochor.app.cli.main import entry
 
 entry()

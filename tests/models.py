@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from isochor.core.mesh import TriMesh
-from isochor.core.shapes import club_levels, sphere_levels
+from isochor.core.scenario.shapes import club_levels, sphere_levels
 
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
 
@@ -51,7 +51,7 @@ def available(name: str) -> Path | None:
 
 
 def trimesh_volume(path: Path) -> float:
-    """The volume trimesh measures for a file, independently of isochor.core.meshio."""
+    """The volume trimesh measures for a file, independently of isochor.core.io.meshio."""
     import trimesh
 
     mesh = trimesh.load_mesh(str(path), process=False)

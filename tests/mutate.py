@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from isochor.core.io.meshio import mesh_bytes
 from isochor.core.mesh import TriMesh
-from isochor.core.meshio import mesh_bytes
 from tests.models import box, icosphere
 
 

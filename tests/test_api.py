@@ -13,7 +13,7 @@ import trimesh
 
 import isochor
 import isochor.core.lattice
-from isochor.core.meshio import save_mesh
+from isochor.core.io.meshio import save_mesh
 from tests.models import icosphere, model
 
 ROOT = Path(__file__).resolve().parents[1]

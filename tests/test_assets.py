@@ -13,10 +13,10 @@ from PIL import Image
 
 from isochor import assets
 from isochor.assets import make_assets
-from isochor.core.examples import EXAMPLES, example_scenario
-from isochor.core.meshio import load_mesh
-from isochor.core.scenario import Scenario
-from isochor.core.shapes import club_levels, torus_levels, torus_volume
+from isochor.core.io.meshio import load_mesh
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.examples import EXAMPLES, example_scenario
+from isochor.core.scenario.shapes import club_levels, torus_levels, torus_volume
 from isochor.core.volume import signed_volume
 
 SHIPPED = {

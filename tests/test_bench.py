@@ -30,10 +30,10 @@ from benchmarks.scale import ScaleRow
 from benchmarks.tables import Table1Row
 from benchmarks.timing import Timing
 from isochor.core import lattice as lat_mod
-from isochor.core import lbfgs as lbfgs_mod
 from isochor.core import volume as vol_mod
 from isochor.core.lattice import Lattice, PointBasis
-from isochor.core.shapes import sphere_levels, torus
+from isochor.core.scenario.shapes import sphere_levels, torus
+from isochor.core.solve import lbfgs as lbfgs_mod
 from isochor.core.springs import SpringNetwork
 from isochor.core.volume import VolumeOperator, signed_volume
 from tests.models import box, model

@@ -1,4 +1,4 @@
-"""The ``isochor`` command line (isochor.app.cli), headless: no Qt is imported here."""
+"""The ``isochor`` command line (isochor.app.cli.main), headless: no Qt is imported here."""
 
 from __future__ import annotations
 
@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 import trimesh
 
-import isochor.core.multilevel
-from isochor.app import cli
-from isochor.app.cli import main
-from isochor.core.examples import EXAMPLES
-from isochor.core.meshio import load_mesh, mesh_bytes
-from isochor.core.paper_models import bend_scenario, cow_bend_scenario, squash_scenario
+import isochor.core.solve.multilevel
+from isochor.app.cli import main as cli
+from isochor.app.cli.main import main
+from isochor.core.io.meshio import load_mesh, mesh_bytes
+from isochor.core.scenario.examples import EXAMPLES
+from isochor.core.scenario.paper_models import bend_scenario, cow_bend_scenario, squash_scenario
 from tests.fresh import run_fresh
 from tests.models import CLOSED, OPEN, available, icosphere, model, trimesh_volume
 
@@ -84,7 +84,7 @@ def test_model_solves_and_the_export_keeps_the_volume(tmp_path, capsys, name, ed
     assert status == 0, captured.err
     assert set(report) >= REPORT_KEYS
     assert report["converged"] is True
-    # the loaded model's volume, measured independently of isochor.core.meshio
+    # the loaded model's volume, measured independently of isochor.core.io.meshio
     if name == "cow_flipped_patch.obj":
         reference = trimesh_volume(model("cow.obj"))  # the repaired cow is the cow
     elif name.startswith("multibody"):
@@ -167,7 +167,7 @@ def test_cow_bending_plate_4(tmp_path, capsys):
 
 def test_example_solves_in_a_subprocess_without_qt(tmp_path):
     code = (
-        "from isochor.app.cli import main\n"
+        "from isochor.app.cli.main import main\n"
         f"status = main(['solve', '--example', 'torus-compression', '--out', "
         f"{str(tmp_path / 't.stl')!r}, '--report', {str(tmp_path / 'r.json')!r}])\n"
         "print('status', status)\n"
@@ -176,7 +176,7 @@ def test_example_solves_in_a_subprocess_without_qt(tmp_path):
         code,
         cwd=ROOT,
         timeout=300,
-        extra=frozenset({"isochor.app.launch", "isochor.app.mainwindow"}),
+        extra=frozenset({"isochor.app.cli.launch", "isochor.app.window.mainwindow"}),
     )
     assert run.returncode == 0 and "status 0" in run.stdout, run.stderr
     assert gui == []
@@ -194,7 +194,7 @@ def test_refused_model_in_a_subprocess_is_one_line(tmp_path):
         [
             sys.executable,
             "-m",
-            "isochor.app.cli",
+            "isochor.app.cli.main",
             "solve",
             str(scene),
             "--out",
@@ -288,7 +288,7 @@ def test_outputs_are_checked_before_solving(tmp_path, capsys, monkeypatch):
     def no_solve(*args, **kwargs):
         raise AssertionError("solved anyway")
 
-    monkeypatch.setattr(isochor.core.multilevel, "solve", no_solve)
+    monkeypatch.setattr(isochor.core.solve.multilevel, "solve", no_solve)
     for argv, text in (
         (["--out", str(tmp_path / "x.3ds")], "x.3ds"),
         (["--out", str(tmp_path / "no" / "x.ply")], "does not exist"),
@@ -301,12 +301,12 @@ def test_outputs_are_checked_before_solving(tmp_path, capsys, monkeypatch):
 
 
 def test_unwritable_output_is_one_line(tmp_path, capsys, monkeypatch):
-    import isochor.core.scenario
+    import isochor.core.scenario.document
 
     def denied(*args, **kwargs):
         raise PermissionError(13, "Permission denied", str(tmp_path / "o.ply"))
 
-    monkeypatch.setattr(isochor.core.atomic.tempfile, "mkstemp", denied)
+    monkeypatch.setattr(isochor.core.io.atomic.tempfile, "mkstemp", denied)
     assert main(["solve", "--example", "torus-compression", "--out", str(tmp_path / "o.ply")]) == 1
     err = capsys.readouterr().err
     assert err == (
@@ -334,7 +334,7 @@ def test_not_converged_writes_outputs_and_exits_3(tmp_path, capsys, monkeypatch)
 
 # -- Ctrl-C -------------------------------------------------------------------------------
 def test_ctrl_c_stops_the_solve_and_writes_nothing(tmp_path, capsys, monkeypatch):
-    real = isochor.core.multilevel.solve
+    real = isochor.core.solve.multilevel.solve
     closed = []
 
     def interrupted(*args, **kwargs):
@@ -347,7 +347,7 @@ def test_ctrl_c_stops_the_solve_and_writes_nothing(tmp_path, capsys, monkeypatch
         finally:
             closed.append(True)
 
-    monkeypatch.setattr(isochor.core.multilevel, "solve", interrupted)
+    monkeypatch.setattr(isochor.core.solve.multilevel, "solve", interrupted)
     out, rep = tmp_path / "o.ply", tmp_path / "r.json"
     status = main(
         ["solve", "--example", "torus-compression", "--out", str(out), "--report", str(rep)]
@@ -358,10 +358,10 @@ def test_ctrl_c_stops_the_solve_and_writes_nothing(tmp_path, capsys, monkeypatch
 
 
 def test_ctrl_c_between_steps_closes_the_generator(monkeypatch):
-    from isochor.core.examples import example_scenario
-    from isochor.core.problem import build
+    from isochor.core.scenario.examples import example_scenario
+    from isochor.core.scenario.problem import build
 
-    real = isochor.core.multilevel.solve
+    real = isochor.core.solve.multilevel.solve
     state = {"closed": False, "records": 0}
 
     def watched(*args, **kwargs):
@@ -383,7 +383,7 @@ def test_ctrl_c_between_steps_closes_the_generator(monkeypatch):
         def flush(self):
             pass
 
-    monkeypatch.setattr(isochor.core.multilevel, "solve", watched)
+    monkeypatch.setattr(isochor.core.solve.multilevel, "solve", watched)
     try:
         cli.run_solve(build(example_scenario("torus-compression")), Keyboard())
     except KeyboardInterrupt:
@@ -397,9 +397,9 @@ def test_ctrl_c_between_steps_closes_the_generator(monkeypatch):
 # -- dispatch to the editor -------------------------------------------------------------
 def test_edit_and_no_command_open_the_editor_lazily(monkeypatch):
     calls = []
-    fake = types.ModuleType("isochor.app.launch")
+    fake = types.ModuleType("isochor.app.cli.launch")
     fake.run_editor = lambda path, shot, timeout=None: calls.append((path, shot, timeout)) or 7
-    monkeypatch.setitem(sys.modules, "isochor.app.launch", fake)
+    monkeypatch.setitem(sys.modules, "isochor.app.cli.launch", fake)
     assert main(["edit", "scene.json", "--screenshot", "s.png", "--timeout", "9"]) == 7
     assert main([]) == 7
     assert main(["edit", "cow.obj"]) == 7
@@ -407,7 +407,7 @@ def test_edit_and_no_command_open_the_editor_lazily(monkeypatch):
 
 
 def test_editor_that_cannot_start_is_one_line(monkeypatch, capsys):
-    monkeypatch.setitem(sys.modules, "isochor.app.launch", None)  # import fails
+    monkeypatch.setitem(sys.modules, "isochor.app.cli.launch", None)  # import fails
     assert main(["edit", "x.json"]) == 1
     err = capsys.readouterr().err
     assert err.startswith("isochor: the editor cannot start") and err.count("\n") == 1
@@ -424,7 +424,8 @@ def test_version_and_no_bench_command(capsys):
 def test_a_signal_whose_exception_comes_out_as_another_is_still_an_interruption(capsys):
     # a SIGINT that lands while a C extension is imported comes out as "ImportError:
     # initialization failed"; it must end as interrupted (130), not as an internal error
-    from isochor.app import cli, interrupts
+    from isochor.app.cli import interrupts
+    from isochor.app.cli import main as cli
 
     before = interrupts.state.raised
     interrupts.state.raised = 2

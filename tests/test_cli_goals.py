@@ -33,11 +33,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isochor.core.constraints import RATIO_RANGE
 from isochor.core.defaults import TOL_VOLUME
-from isochor.core.edits import MAX_MOVE
-from isochor.core.problem import build
-from isochor.core.scenario import Scenario
+from isochor.core.goal.constraints import RATIO_RANGE
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.edits import MAX_MOVE
+from isochor.core.scenario.problem import build
 from tests import test_contract as contract
 from tests.models import available, model
 
@@ -765,7 +765,7 @@ def test_club_bend_keeps_its_centroid_with_keep_centroid(tmp_path):
     assert free.returncode == 0, free
     assert free.report["keep_centroid"] is False and free.report["centroid_shift"] is None, free
     # measured by trimesh on the written meshes, against the rest club
-    from isochor.core.shapes import builtin_levels
+    from isochor.core.scenario.shapes import builtin_levels
 
     club = builtin_levels("club")[-1]
     rest = trimesh.Trimesh(club.vertices, club.faces, process=False)

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from isochor.core.api import Session
-from isochor.core.problem import build
-from isochor.core.scenario import Scenario
-from isochor.core.symmetry import Mirror
+from isochor.core.goal.symmetry import Mirror
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.problem import build
 from tests.test_cli_goals import SMALL_TORUS, cow, one_line, scenario, solve, solve_all
 
 

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from isochor.core.anchor import held_face, rigid_freedom
-from isochor.core.constraints import CENTROID_SCALE, Bodies, Constraints, Goal, Level
 from isochor.core.errors import IsochorError
+from isochor.core.goal.anchor import held_face, rigid_freedom
+from isochor.core.goal.constraints import CENTROID_SCALE, Bodies, Constraints, Goal, Level
 from isochor.core.lattice import Lattice
 from isochor.core.mesh import TriMesh
 from isochor.core.volume import MomentOperator

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import pytest
 
+from isochor.core.io.meshio import mesh_bytes
 from isochor.core.mesh import TriMesh
-from isochor.core.meshio import mesh_bytes
 from tests.models import MODELS, box, icosphere, joined
 
 # -- running the command ----------------------------------------------------------------
@@ -318,7 +318,7 @@ _m.{name} = _boom
 
 @pytest.mark.parametrize(
     "module, name",
-    [("isochor.core.multilevel", "solve"), ("isochor.core.meshio", "mesh_bytes")],
+    [("isochor.core.solve.multilevel", "solve"), ("isochor.core.io.meshio", "mesh_bytes")],
     ids=["in-the-solve", "while-writing"],
 )
 def test_internal_error_exit_70_is_one_line(tmp_path, module, name):

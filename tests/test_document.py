@@ -1,4 +1,4 @@
-"""The editor model (isochor.app.document): its edit rules, selection, drag session, results,
+"""The editor model (isochor.app.editor.document): its edit rules, selection, drag session, results,
 status words and files. Qt-free, so everything here runs headless."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isochor.app.document import (
+from isochor.app.editor.document import (
     DocState,
     Document,
     Edit,
@@ -23,14 +23,14 @@ from isochor.app.document import (
     plural,
 )
 from isochor.core.errors import IsochorError
-from isochor.core.examples import example_scenario
-from isochor.core.generators import run_to_end
+from isochor.core.io.meshio import load_mesh, save_mesh
 from isochor.core.mesh import TriMesh
-from isochor.core.meshio import load_mesh, save_mesh
-from isochor.core.multilevel import solve
-from isochor.core.problem import build
-from isochor.core.scenario import Scenario
-from isochor.core.shapes import sphere_levels
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.examples import example_scenario
+from isochor.core.scenario.problem import build
+from isochor.core.scenario.shapes import sphere_levels
+from isochor.core.solve.generators import run_to_end
+from isochor.core.solve.multilevel import solve
 from tests.fresh import run_fresh
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -1004,9 +1004,9 @@ def test_export_writes_the_deformed_mesh(rest, tmp_path):
 def test_the_document_runs_without_qt():
     """A whole edit session in a fresh interpreter imports neither Qt nor VTK."""
     code = (
-        "from isochor.app.document import Document, StateCell, describe_status\n"
-        "from isochor.core.scenario import Scenario\n"
-        "from isochor.core.problem import build\n"
+        "from isochor.app.editor.document import Document, StateCell, describe_status\n"
+        "from isochor.core.scenario.document import Scenario\n"
+        "from isochor.core.scenario.problem import build\n"
         f"d = Document(build(Scenario.from_dict({SPHERE!r})))\n"
         "d.select([0, 1])\n"
         "d.set_cell(StateCell(d.edit_position(0, -2.0).state))\n"
@@ -1224,7 +1224,7 @@ def test_a_solve_summary_keeps_what_the_window_shows(rest):
 
 
 def test_a_folded_result_says_so(doc):
-    from isochor.core.folds import Folds
+    from isochor.core.goal.folds import Folds
 
     mask = np.zeros(10, bool)
     mask[:3] = True
@@ -1247,14 +1247,14 @@ def test_a_folded_result_says_so(doc):
 
 
 def test_the_sentences_of_the_goal():
-    from isochor.app.state import (
+    from isochor.app.editor.state import (
         bodies_sentence,
         centroid_sentence,
         fold_sentence,
         held_sentence,
         percent,
     )
-    from isochor.core.records import BodyVolume
+    from isochor.core.solve.records import BodyVolume
 
     assert held_sentence(9, "x max") == (
         "Holding the x max face (9 nodes) so the model does not drift — untick Hold far "

@@ -1,4 +1,4 @@
-"""The order the view draws a model's triangles in (app/modelview.py, ``draw_order``): a
+"""The order the view draws a model's triangles in (app/view/modelview.py, ``draw_order``): a
 permutation of them along a space-filling curve, so that neighbours in space are drawn
 one after another (software OpenGL renders that faster; the picture is the same)."""
 
@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isochor.app.modelview import draw_order
-from isochor.core.shapes import torus_levels
+from isochor.app.view.modelview import draw_order
+from isochor.core.scenario.shapes import torus_levels
 
 
 def mean_step(points, faces, order) -> float:

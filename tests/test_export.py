@@ -12,10 +12,10 @@ import pytest
 import trimesh
 
 import isochor
-from isochor.app.cli import main
-from isochor.app.document import Document
-from isochor.core.paper_models import bend_scenario, squash_scenario
-from isochor.core.scenario import Scenario
+from isochor.app.cli.main import main
+from isochor.app.editor.document import Document
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.paper_models import bend_scenario, squash_scenario
 from tests.models import icosphere, model
 
 

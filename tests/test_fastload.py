@@ -1,5 +1,5 @@
 """The fast paths of loading a large model give what the general ones give: the direct
-binary PLY reader (isochor.core.meshio.binary_ply) what trimesh reads, the sparse edge
+binary PLY reader (isochor.core.io.meshio.binary_ply) what trimesh reads, the sparse edge
 numbering and body labels what sorting gives, the hashed "anything to weld / drop?" test,
 the blocked tetrahedron volumes and the pyramid's closedness test."""
 
@@ -14,11 +14,8 @@ import trimesh
 from scipy.sparse.csgraph import connected_components
 
 from isochor.core.bodies import tetra_volumes
-from isochor.core.mesh import TriMesh
-from isochor.core.meshio import binary_ply, load_mesh, mesh_bytes
-from isochor.core.problem import load_model
-from isochor.core.pyramid import build_pyramid
-from isochor.core.repair import (
+from isochor.core.io.meshio import binary_ply, load_mesh, mesh_bytes
+from isochor.core.io.repair import (
     EdgeReport,
     any_repeated_row,
     balanced,
@@ -27,6 +24,9 @@ from isochor.core.repair import (
     group_rows,
     weld,
 )
+from isochor.core.mesh import TriMesh
+from isochor.core.scenario.problem import load_model
+from isochor.core.solve.pyramid import build_pyramid
 from isochor.core.volume import face_volumes
 from tests.models import box, icosphere, joined
 

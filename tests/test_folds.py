@@ -8,7 +8,7 @@ import trimesh
 
 from isochor.core import kernels
 from isochor.core.bodies import winding_numbers
-from isochor.core.folds import (
+from isochor.core.goal.folds import (
     FoldCheck,
     FoldGuard,
     Folds,

@@ -1,4 +1,4 @@
-"""glTF 2.0 round trip (isochor.core.gltf): read the world-space surface of a .glb/.gltf,
+"""glTF 2.0 round trip (isochor.core.io.gltf): read the world-space surface of a .glb/.gltf,
 write it back deformed with everything else kept, or as a morph target; refuse what cannot
 be done with one line.
 
@@ -23,8 +23,8 @@ import pytest
 import trimesh
 
 from isochor.core.errors import IsochorError
-from isochor.core.gltf import read_gltf, rewrite_gltf
-from isochor.core.repair import clean_closed_surface
+from isochor.core.io.gltf import read_gltf, rewrite_gltf
+from isochor.core.io.repair import clean_closed_surface
 from isochor.core.volume import signed_volume
 from tests.models import model
 

@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 import trimesh
 
-from isochor.core.constraints import Goal
 from isochor.core.errors import IsochorError
-from isochor.core.generators import run_to_end
+from isochor.core.goal.constraints import Goal
 from isochor.core.mesh import TriMesh
-from isochor.core.multilevel import solve
-from isochor.core.paper_models import bend_scenario, cow_bend_scenario
-from isochor.core.problem import Model, build, default_lattice_shape, load_model
-from isochor.core.pyramid import build_pyramid
-from isochor.core.scenario import Move, Scenario
-from isochor.core.shapes import torus_levels
+from isochor.core.scenario.document import Move, Scenario
+from isochor.core.scenario.paper_models import bend_scenario, cow_bend_scenario
+from isochor.core.scenario.problem import Model, build, default_lattice_shape, load_model
+from isochor.core.scenario.shapes import torus_levels
+from isochor.core.solve.generators import run_to_end
+from isochor.core.solve.multilevel import solve
+from isochor.core.solve.pyramid import build_pyramid
 from tests.models import model
 
 TOL = 5e-4

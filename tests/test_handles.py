@@ -6,16 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isochor.core.constraints import Goal
 from isochor.core.errors import IsochorError
-from isochor.core.generators import run_to_end
-from isochor.core.handles import HANDLE_MET, Handle, HandleSystem, handle_rows, weights
+from isochor.core.goal.constraints import Goal
+from isochor.core.goal.handles import HANDLE_MET, Handle, HandleSystem, handle_rows, weights
+from isochor.core.goal.symmetry import Mirror
 from isochor.core.lattice import Lattice
-from isochor.core.multilevel import solve
-from isochor.core.problem import build
-from isochor.core.scenario import Scenario
-from isochor.core.solver import Coordinates
-from isochor.core.symmetry import Mirror
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.problem import build
+from isochor.core.solve.generators import run_to_end
+from isochor.core.solve.multilevel import solve
+from isochor.core.solve.solver import Coordinates
 from tests.models import model
 from tests.numdiff import central_gradient
 

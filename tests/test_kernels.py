@@ -1,4 +1,4 @@
-"""The optional compiled kernels (core/kernels.py): the same numbers as the NumPy path, the
+"""The optional compiled kernels (core/kernels/): the same numbers as the NumPy path, the
 NumPy path wherever they are missing, off or broken, and never a wait for the compiler.
 
 The tests of the compiled path wait for it (``kernels.ready``) and are skipped without
@@ -16,14 +16,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from isochor.core import _jitcache, kernels
+from isochor.core import kernels
 from isochor.core import lattice as lat_mod
-from isochor.core.examples import example_scenario
-from isochor.core.generators import run_to_end
+from isochor.core.kernels import cache as _jitcache
 from isochor.core.lattice import Lattice
-from isochor.core.multilevel import solve
-from isochor.core.problem import build
-from isochor.core.shapes import sphere_levels, torus, torus_levels
+from isochor.core.scenario.examples import example_scenario
+from isochor.core.scenario.problem import build
+from isochor.core.scenario.shapes import sphere_levels, torus, torus_levels
+from isochor.core.solve.generators import run_to_end
+from isochor.core.solve.multilevel import solve
 from isochor.core.volume import VolumeOperator, signed_volume
 
 
@@ -208,7 +209,7 @@ def _child(code: str, **env) -> str:
 EVALUATE = textwrap.dedent("""
     from isochor.core import kernels
     from isochor.core.lattice import Lattice
-    from isochor.core.shapes import torus
+    from isochor.core.scenario.shapes import torus
     from isochor.core.volume import VolumeOperator
     mesh = torus(64, 48)
     lat = Lattice.around(mesh.vertices, (3, 3, 3))
@@ -266,7 +267,7 @@ def test_the_first_evaluation_does_not_wait_for_the_compiler():
 
 def test_numba_caches_in_a_user_folder(tmp_path):
     pytest.importorskip("numba")
-    code = "import os\nfrom isochor.core import _jitbase\nprint(os.environ['NUMBA_CACHE_DIR'])"
+    code = "import os\nfrom isochor.core.kernels import base\nprint(os.environ['NUMBA_CACHE_DIR'])"
     env = {"XDG_CACHE_HOME": str(tmp_path), "NUMBA_CACHE_DIR": ""}
     folder = _child(code, **env).strip()
     assert folder.startswith(str(tmp_path / "isochor" / "numba")), folder

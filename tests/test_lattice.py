@@ -111,7 +111,7 @@ def test_jacobian_matches_central_differences_in_a_skewed_frame(shape, monkeypat
 
 
 def test_a_basis_keeps_the_lattice_coordinates_of_its_points():
-    """The compiled kernels (core/kernels.py) evaluate the basis from them."""
+    """The compiled kernels (core/kernels/) evaluate the basis from them."""
     rng = np.random.default_rng(5)
     lat = Lattice((3, 4, 2), (0.5, -1.0, 2.0), [[2.0, 0.3, 0.0], [0.1, 1.5, 0.2], [0, -0.4, 1]])
     pts = lat.origin + rng.uniform(size=(40, 3)) @ lat.axes

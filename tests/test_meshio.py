@@ -1,4 +1,4 @@
-"""Reading, cleaning, checking and writing mesh files (isochor.core.meshio)."""
+"""Reading, cleaning, checking and writing mesh files (isochor.core.io.meshio)."""
 
 from __future__ import annotations
 
@@ -11,16 +11,16 @@ import trimesh
 from scipy.spatial import ConvexHull
 
 from isochor.core.errors import IsochorError
+from isochor.core.io.meshio import load_mesh, mesh_bytes, save_mesh
+from isochor.core.io.repair import EdgeReport, clean_closed_surface, count_bodies
 from isochor.core.mesh import TriMesh
-from isochor.core.meshio import load_mesh, mesh_bytes, save_mesh
-from isochor.core.problem import load_model
-from isochor.core.repair import EdgeReport, clean_closed_surface, count_bodies
+from isochor.core.scenario.problem import load_model
 from isochor.core.volume import signed_volume
 from tests.models import CLOSED, OPEN, box, icosphere, joined, model, trimesh_volume
 
 
 def write_obj(path, mesh: TriMesh) -> None:
-    """A plain OBJ written without isochor.core.meshio (so the reader is tested on its own)."""
+    """A plain OBJ written without isochor.core.io.meshio (so the reader is tested on its own)."""
     lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in mesh.vertices.tolist()]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh.faces.tolist()]
     path.write_text("\n".join(lines) + "\n")
@@ -180,7 +180,7 @@ def test_one_far_vertex_is_neither_flat_nor_open_but_said(tmp_path, far):
 
 
 def test_files_that_cannot_be_of_their_format_fail_at_once(tmp_path, monkeypatch):
-    import isochor.core.meshio as meshio
+    import isochor.core.io.meshio as meshio
 
     for name in ("zeros.ply", "zeros.stl", "zeros.obj", "zeros.off"):
         with open(tmp_path / name, "wb") as fh:
@@ -345,12 +345,12 @@ def test_save_is_atomic_and_keeps_normal_permissions(tmp_path, monkeypatch):
     assert mode & stat.S_IRGRP or os.name == "nt"  # not the 0600 of a temporary file
     before = path.read_bytes()
 
-    import isochor.core.scenario
+    import isochor.core.scenario.document
 
     def boom(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(isochor.core.atomic.os, "replace", boom)
+    monkeypatch.setattr(isochor.core.io.atomic.os, "replace", boom)
     with pytest.raises(KeyboardInterrupt):
         save_mesh(path, icosphere(2))
     assert path.read_bytes() == before

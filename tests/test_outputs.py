@@ -1,5 +1,5 @@
-"""Writing the user's files (isochor.core.atomic) and the command line's signals
-(isochor.app.interrupts), in process: what is refused, all-or-none, roll-back."""
+"""Writing the user's files (isochor.core.io.atomic) and the command line's signals
+(isochor.app.cli.interrupts), in process: what is refused, all-or-none, roll-back."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import stat
 
 import pytest
 
-import isochor.core.atomic as atomic
-from isochor.app import interrupts
-from isochor.core.atomic import check_outputs, write_outputs
+import isochor.core.io.atomic as atomic
+from isochor.app.cli import interrupts
 from isochor.core.errors import IsochorError
+from isochor.core.io.atomic import check_outputs, write_outputs
 
 
 def listing(folder) -> list[str]:

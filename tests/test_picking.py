@@ -1,4 +1,4 @@
-"""Projection and picking maths of the 3D view (isochor.app.picking): numpy only, headless.
+"""Projection and picking maths of the 3D view (isochor.app.view.picking): numpy only, headless.
 
 The cameras are written out by hand (OpenGL look-at, orthographic and perspective
 matrices), so these tests need neither VTK nor Qt.
@@ -11,14 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isochor.app.picking import (
-    PICK_RADIUS,
-    PICK_TIE,
-    Projection,
-    drag_delta,
-    in_rect,
-    nearest,
-)
+from isochor.app.view.picking import PICK_RADIUS, PICK_TIE, Projection, drag_delta, in_rect, nearest
 from tests.fresh import run_fresh
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -381,7 +374,7 @@ def test_drag_in_a_plane_seen_edge_on_is_undefined():
 def test_picking_imports_no_qt():
     """The module and its maths run in a fresh interpreter without Qt or VTK."""
     code = (
-        "import isochor.app.picking as p\n"
+        "import isochor.app.view.picking as p\n"
         "import numpy as np\n"
         "proj = p.Projection(np.eye(4), (0, 0, 100, 100), 100.0)\n"
         "assert p.nearest(proj, [[0, 0, 0]], 50, 49) == 0\n"

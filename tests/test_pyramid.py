@@ -1,4 +1,4 @@
-"""The level pyramid (isochor.core.pyramid): QEM levels, each one checked."""
+"""The level pyramid (isochor.core.solve.pyramid): QEM levels, each one checked."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-import isochor.core.pyramid
+import isochor.core.solve.pyramid
+from isochor.core.io.meshio import load_mesh
+from isochor.core.io.repair import EdgeReport, count_bodies
 from isochor.core.mesh import TriMesh
-from isochor.core.meshio import load_mesh
-from isochor.core.pyramid import MAX_OUTSIDE, build_pyramid, volume_tolerance
-from isochor.core.repair import EdgeReport, count_bodies
+from isochor.core.solve.pyramid import MAX_OUTSIDE, build_pyramid, volume_tolerance
 from isochor.core.volume import signed_volume
 from tests.models import CLOSED, club, icosphere, joined, model, uv_sphere
 
@@ -110,7 +110,7 @@ def test_broken_simplifier_output_is_never_used(monkeypatch):
         return TriMesh(v, m.faces)
 
     for bad, why in ((shrunk, "volume off"), (holed, "not closed"), (outside, "outside")):
-        monkeypatch.setattr(isochor.core.pyramid, "simplify", bad)
+        monkeypatch.setattr(isochor.core.solve.pyramid, "simplify", bad)
         notes: list[str] = []
         assert build_pyramid(mesh, notes=notes) == [mesh]
         assert len(notes) == 3 and all(why in n for n in notes), notes
@@ -118,7 +118,7 @@ def test_broken_simplifier_output_is_never_used(monkeypatch):
 
 def test_a_failed_level_is_retried_with_a_larger_target(monkeypatch):
     mesh = icosphere(4)  # 5120
-    real = isochor.core.pyramid.simplify
+    real = isochor.core.solve.pyramid.simplify
     calls = []
 
     def first_fails(m, target):
@@ -126,7 +126,7 @@ def test_a_failed_level_is_retried_with_a_larger_target(monkeypatch):
         out = real(m, target)
         return TriMesh(out.vertices * 0.5, out.faces) if len(calls) == 1 else out
 
-    monkeypatch.setattr(isochor.core.pyramid, "simplify", first_fails)
+    monkeypatch.setattr(isochor.core.solve.pyramid, "simplify", first_fails)
     notes: list[str] = []
     levels = build_pyramid(mesh, notes=notes)
     assert calls[:2] == [1280, 1600]

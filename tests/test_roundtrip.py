@@ -1,4 +1,4 @@
-"""The round trip into the artist's pipeline (isochor.core.roundtrip): a model file given back
+"""The round trip into the artist's pipeline (isochor.core.io.roundtrip): a model file given back
 with its positions deformed and its normals transformed, everything else kept.
 
 The maps: an affine one (a constant, non-orthogonal Jacobian with a positive determinant), a
@@ -20,8 +20,8 @@ import pytest
 import trimesh
 
 from isochor.core.errors import IsochorError
+from isochor.core.io.roundtrip import ROUNDTRIP_FORMATS, Rewritten, positions, rewrite
 from isochor.core.lattice import Lattice
-from isochor.core.roundtrip import ROUNDTRIP_FORMATS, Rewritten, positions, rewrite
 from tests.models import CUBE_FACES, CUBE_VERTICES, icosphere, model
 
 A = np.array([[1.3, 0.4, -0.2], [0.1, 0.8, 0.3], [-0.3, 0.2, 1.1]])  # not orthogonal

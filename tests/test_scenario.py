@@ -1,4 +1,4 @@
-"""The scenario document (isochor.core.scenario): validation, files, reproducible solves."""
+"""The scenario document (isochor.core.scenario.document): validation, files, solves."""
 
 from __future__ import annotations
 
@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from isochor.core.errors import IsochorError
-from isochor.core.examples import EXAMPLES, example_scenario
+from isochor.core.io.meshio import save_mesh
 from isochor.core.mesh import TriMesh
-from isochor.core.meshio import save_mesh
-from isochor.core.multilevel import solve
-from isochor.core.paper_models import bend_scenario, cow_bend_scenario, squash_scenario
-from isochor.core.problem import build
-from isochor.core.scenario import Scenario
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.examples import EXAMPLES, example_scenario
+from isochor.core.scenario.paper_models import bend_scenario, cow_bend_scenario, squash_scenario
+from isochor.core.scenario.problem import build
+from isochor.core.solve.multilevel import solve
 from tests.models import MODELS, club, model
 
 GOOD = {
@@ -295,7 +295,7 @@ def _scaled_copy(sc: Scenario, path, factor: float) -> Scenario:
 @pytest.mark.parametrize("source", ["club", "kitten.obj"])
 def test_scaled_model_gives_the_scaled_result(tmp_path, club_file, source):
     path = club_file if source == "club" else model(source)
-    from isochor.core.meshio import load_mesh
+    from isochor.core.io.meshio import load_mesh
 
     mesh = load_mesh(path).mesh
     big = tmp_path / "big.ply"
@@ -320,7 +320,7 @@ def test_cow_bend_scenario_is_the_papers_setup():
 
 def test_a_model_given_as_a_scenario_says_what_to_do(tmp_path):
     from isochor.core.errors import IsochorError
-    from isochor.core.scenario import Scenario
+    from isochor.core.scenario.document import Scenario
 
     model = tmp_path / "cube.obj"
     model.write_text("v 0 0 0\n")

@@ -8,11 +8,11 @@ import pytest
 import trimesh
 
 from isochor.core.api import Session
-from isochor.core.edits import Edit, Move
 from isochor.core.errors import IsochorError
-from isochor.core.poses import Pose, Timeline
-from isochor.core.scenario import Scenario
-from isochor.core.sequence import frame_path
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.edits import Edit, Move
+from isochor.core.scenario.poses import Pose, Timeline
+from isochor.core.scenario.sequence import frame_path
 
 
 def test_the_timeline_eases_between_keys_and_holds_outside_them():

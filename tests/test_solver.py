@@ -5,15 +5,15 @@ import inspect
 import numpy as np
 import pytest
 
-from isochor.core.constraints import Goal
 from isochor.core.errors import IsochorError
-from isochor.core.examples import example_scenario
+from isochor.core.goal.constraints import Goal
 from isochor.core.lattice import Lattice
 from isochor.core.mesh import TriMesh
-from isochor.core.multilevel import EmbeddedSurface, solve
-from isochor.core.problem import build
-from isochor.core.shapes import sphere_levels, torus_levels
-from isochor.core.solver import LevelProblem, SolverOptions
+from isochor.core.scenario.examples import example_scenario
+from isochor.core.scenario.problem import build
+from isochor.core.scenario.shapes import sphere_levels, torus_levels
+from isochor.core.solve.multilevel import EmbeddedSurface, solve
+from isochor.core.solve.solver import LevelProblem, SolverOptions
 from tests.numdiff import central_gradient
 
 
@@ -265,8 +265,8 @@ def test_the_preconditioner_never_slows_a_run_where_the_fold_guard_takes_hold():
     it after ``PRECONDITIONED_STEPS`` (it took three times the plain steps before)."""
     from dataclasses import replace
 
-    from isochor.core.generators import run_to_end
-    from isochor.core.paper_models import bend_scenario
+    from isochor.core.scenario.paper_models import bend_scenario
+    from isochor.core.solve.generators import run_to_end
     from tests.models import model
 
     p = build(bend_scenario(model("kitten.obj")))

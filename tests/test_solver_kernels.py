@@ -1,4 +1,4 @@
-"""The compiled pieces of the solver's own step (core/_jitsolver.py through core/kernels.py):
+"""The compiled pieces of the solver's own step (core/kernels/solver.py through kernels.step):
 the spring energy, gradient and Hessian and the L-BFGS memory and recursion give the NumPy
 path's numbers, a broken one leaves the NumPy path in place, and a solve keeps one path."""
 
@@ -9,15 +9,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from isochor.core import kernels, stepkernels
-from isochor.core.generators import run_to_end
+from isochor.core import kernels
+from isochor.core.kernels import step as stepkernels
+from isochor.core.kernels.pairs import Pairs
 from isochor.core.lattice import Lattice
-from isochor.core.lbfgs import lbfgs
-from isochor.core.multilevel import solve
-from isochor.core.pairs import Pairs
-from isochor.core.precondition import Curvature, Product
-from isochor.core.problem import build
-from isochor.core.scenario import Scenario
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.problem import build
+from isochor.core.solve.generators import run_to_end
+from isochor.core.solve.lbfgs import lbfgs
+from isochor.core.solve.multilevel import solve
+from isochor.core.solve.precondition import Curvature, Product
 from isochor.core.springs import SpringNetwork
 
 

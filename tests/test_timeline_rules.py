@@ -10,8 +10,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from isochor.app.document import Document
-from isochor.app.timeline import (
+from isochor.app.editor.document import Document
+from isochor.app.editor.timeline import (
     FrameCache,
     FrameCaches,
     TimelineState,
@@ -25,11 +25,11 @@ from isochor.app.timeline import (
     sequence_signature,
 )
 from isochor.core.errors import IsochorError
-from isochor.core.generators import run_to_end
-from isochor.core.poses import Pose
-from isochor.core.problem import build
-from isochor.core.scenario import Scenario
-from isochor.core.sequence import solve_sequence
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.poses import Pose
+from isochor.core.scenario.problem import build
+from isochor.core.scenario.sequence import solve_sequence
+from isochor.core.solve.generators import run_to_end
 
 SPHERE = {"model": {"builtin": "sphere", "n_levels": 3}, "lattice": {"nodes": [3, 3, 3]}}
 
@@ -46,7 +46,7 @@ def doc(problem):
 
 def commit(doc, edit):
     """What the session does with an edit: its state becomes current."""
-    from isochor.app.state import StateCell
+    from isochor.app.editor.state import StateCell
 
     assert edit is not None
     doc.set_cell(StateCell(edit.state))

@@ -7,13 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isochor.app import picking
-from isochor.app.document import Document
-from isochor.app.selection import face, faces_containing, layer, line
-from isochor.app.transform import Transform, apply, rotation
+from isochor.app.editor.document import Document
+from isochor.app.editor.selection import face, faces_containing, layer, line
+from isochor.app.editor.transform import Transform, apply, rotation
+from isochor.app.view import picking
 from isochor.core.lattice import Lattice
-from isochor.core.problem import build
-from isochor.core.scenario import Scenario
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.problem import build
 from tests.models import icosphere
 
 SPHERE = {"model": {"builtin": "sphere", "n_levels": 3}, "lattice": {"nodes": [3, 4, 5]}}
@@ -234,7 +234,7 @@ def test_a_lattice_made_elsewhere_works_with_the_rules():
 
 # -- handles ---------------------------------------------------------------------------------
 def commit(document: Document, edit):
-    from isochor.app.state import StateCell
+    from isochor.app.editor.state import StateCell
 
     assert edit is not None
     cell = StateCell(edit.state)
@@ -293,7 +293,7 @@ def test_a_handle_drag_moves_the_target_only(doc):
 
 
 def test_handles_and_symmetry_are_saved_and_read_back(doc, tmp_path):
-    from isochor.core.scenario import Scenario
+    from isochor.core.scenario.document import Scenario
 
     at = doc.rest_point(3, [0.5, 0.25, 0.25])
     commit(doc, doc.edit_add_handle(at, to=at + 0.1))
@@ -313,8 +313,8 @@ def test_handles_and_symmetry_are_saved_and_read_back(doc, tmp_path):
 
 
 def test_the_status_says_what_became_of_the_handles():
-    from isochor.app.state import SolveSummary, handles_note
-    from isochor.core.handles import HandleResult
+    from isochor.app.editor.state import SolveSummary, handles_note
+    from isochor.core.goal.handles import HandleResult
 
     met = HandleResult((0, 0, 0), (1, 0, 0), (1, 0, 0), 0.0)
     miss = HandleResult((0, 0, 0), (1, 0, 0), (0.9, 0, 0), 0.031)
@@ -402,8 +402,8 @@ def test_symmetry_needs_an_axis_aligned_lattice():
 
 
 def test_the_held_face_drawn_before_a_solve_is_the_one_it_holds(doc):
-    from isochor.core.generators import run_to_end
-    from isochor.core.multilevel import solve
+    from isochor.core.solve.generators import run_to_end
+    from isochor.core.solve.multilevel import solve
 
     at = doc.rest_point(11, [0.4, 0.3, 0.3])
     commit(doc, doc.edit_add_handle(at, to=at + [0.0, 0.0, 0.3]))

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from isochor.core.lattice import Lattice
-from isochor.core.multilevel import EmbeddedSurface
-from isochor.core.shapes import sphere_levels, sphere_volume, torus_levels, torus_volume
+from isochor.core.scenario.shapes import sphere_levels, sphere_volume, torus_levels, torus_volume
+from isochor.core.solve.multilevel import EmbeddedSurface
 from isochor.core.volume import VolumeOperator, signed_volume
 from tests.models import CUBE_FACES, CUBE_VERTICES
 from tests.numdiff import central_gradient, check_vertex_gradient
@@ -61,7 +61,7 @@ def test_sampled_volume_converges_as_one_over_n(levels, exact):
 
 def test_builtin_shape_parameters_are_checked():
     from isochor.core.errors import IsochorError
-    from isochor.core.shapes import builtin_levels
+    from isochor.core.scenario.shapes import builtin_levels
 
     assert [m.n_faces for m in builtin_levels("torus", n_levels=2)] == [16, 64]
     for bad in (

@@ -4,12 +4,12 @@ mesh, so the full mesh is evaluated once (for the result), never on the way in."
 import numpy as np
 import pytest
 
-from isochor.core import multilevel
-from isochor.core.constraints import Goal
-from isochor.core.examples import example_scenario
-from isochor.core.generators import run_to_end
-from isochor.core.problem import build
-from isochor.core.solver import SolverOptions
+from isochor.core.goal.constraints import Goal
+from isochor.core.scenario.examples import example_scenario
+from isochor.core.scenario.problem import build
+from isochor.core.solve import multilevel
+from isochor.core.solve.generators import run_to_end
+from isochor.core.solve.solver import SolverOptions
 
 EXAMPLES = ("torus-compression", "torus-stretch", "club-compression")
 #: the volume alone, and with the centre of mass (three more constraints per level)

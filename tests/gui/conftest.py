@@ -48,7 +48,7 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope="session")
 def themed_app(qapp):
-    from isochor.app import style
+    from isochor.app.view import style
 
     style.apply_dark_theme(qapp)
     return qapp
@@ -61,7 +61,7 @@ def wait_idle(qtbot, win, timeout=60_000):
 
 
 def open_window(qtbot, doc=None, size=(1100, 760)):
-    from isochor.app.mainwindow import MainWindow
+    from isochor.app.window.mainwindow import MainWindow
 
     win = MainWindow(doc)
     qtbot.addWidget(win, before_close_func=lambda w: w.undo_stack.setClean())
@@ -98,7 +98,7 @@ def run_cli(args, timeout=120):
     import subprocess
     import time
 
-    code = f"import sys; from isochor.app.cli import main; sys.exit(main({list(args)!r}))"
+    code = f"import sys; from isochor.app.cli.main import main; sys.exit(main({list(args)!r}))"
     t0 = time.perf_counter()
     proc = subprocess.run(
         [sys.executable, "-c", code],
@@ -119,7 +119,7 @@ def save_shot(win, name: str, show=None) -> None:
         return
     from PySide6.QtTest import QTest
 
-    from isochor.app.launch import save_window_png
+    from isochor.app.cli.launch import save_window_png
 
     Path(folder).mkdir(parents=True, exist_ok=True)
     if show is not None:
@@ -136,9 +136,9 @@ SPHERE = {"model": {"builtin": "sphere", "n_levels": 4}, "lattice": {"nodes": [3
 @pytest.fixture
 def sphere(qtbot, themed_app):
     """The window on :data:`SPHERE`, solved, active; closed afterwards without a prompt."""
-    from isochor.app.document import Document
-    from isochor.core.problem import build
-    from isochor.core.scenario import Scenario
+    from isochor.app.editor.document import Document
+    from isochor.core.scenario.document import Scenario
+    from isochor.core.scenario.problem import build
     from tests.gui.test_goal_window import activate
 
     win = open_window(qtbot, Document(build(Scenario.from_dict(SPHERE))))

@@ -29,7 +29,7 @@ def settled(win) -> bool:
 @pytest.fixture
 def armadillo(qtbot, themed_app):
     """The window on the 346k armadillo, its caches prepared, nothing running."""
-    from isochor.app.document import Document
+    from isochor.app.editor.document import Document
 
     doc = Document.open(ARMADILLO)
     doc.surface.prepare(doc.state.problem.options)
@@ -44,8 +44,8 @@ def test_a_drag_of_the_big_armadillo_draws_a_proxy_and_ends_on_the_headless_solv
     from PySide6.QtCore import QPointF, Qt
     from PySide6.QtTest import QTest
 
-    from isochor.core.generators import run_to_end
-    from isochor.core.multilevel import solve
+    from isochor.core.solve.generators import run_to_end
+    from isochor.core.solve.multilevel import solve
 
     win = armadillo
     vp = win.viewport

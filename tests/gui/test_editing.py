@@ -186,7 +186,7 @@ def test_target_volume_and_lattice_rebuild_are_undoable(qtbot, window):
 
 
 def test_save_reopen_and_export(qtbot, window, tmp_path):
-    from isochor.core.scenario import Scenario
+    from isochor.core.scenario.document import Scenario
 
     win = window
     row = pickable_node(win, want_free=True)
@@ -201,8 +201,8 @@ def test_save_reopen_and_export(qtbot, window, tmp_path):
     assert sc.model == {"builtin": "torus"}
 
     out = tmp_path / "deformed.ply"
-    pytest.importorskip("isochor.core.meshio")
-    from isochor.core.meshio import load_mesh
+    pytest.importorskip("isochor.core.io.meshio")
+    from isochor.core.io.meshio import load_mesh
     from isochor.core.volume import signed_volume
 
     assert win.files.export(out)
@@ -243,7 +243,7 @@ def test_unsaved_changes_prompt_on_close(qtbot, window, monkeypatch):
 def test_a_solver_failure_shows_the_message_and_keeps_the_edit(qtbot, window, monkeypatch):
     from PySide6.QtWidgets import QMessageBox
 
-    import isochor.app.worker
+    import isochor.app.session.worker
     from isochor.core.errors import IsochorError
 
     win = window
@@ -258,7 +258,7 @@ def test_a_solver_failure_shows_the_message_and_keeps_the_edit(qtbot, window, mo
         raise IsochorError("The free nodes cannot change the model's volume.")
         yield  # pragma: no cover
 
-    monkeypatch.setattr(isochor.app.worker, "solve", broken)
+    monkeypatch.setattr(isochor.app.session.worker, "solve", broken)
     row = pickable_node(win, want_free=True)
     drag(qtbot, win, row)
     edit = np.array(win.state.nodes)
@@ -347,7 +347,7 @@ def test_isochor_edit_screenshot_from_the_command_line(tmp_path):
 
     from PySide6.QtGui import QImage
 
-    from isochor.core.examples import example_scenario
+    from isochor.core.scenario.examples import example_scenario
     from tests.gui.conftest import distinct_colours, run_cli
 
     scenario = tmp_path / "stretch.json"

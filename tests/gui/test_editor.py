@@ -17,7 +17,7 @@ def screen_positions(win):
 
 def pickable_node(win, want_free=True, exclude=()):
     """A node well inside the view and clear of the others, so a click there picks it."""
-    from isochor.app.picking import PICK_RADIUS
+    from isochor.app.view.picking import PICK_RADIUS
 
     vp = win.viewport
     xy, visible = screen_positions(win)
@@ -102,7 +102,7 @@ def test_the_view_draws_the_models_own_triangles_in_its_draw_order(window):
 def test_screenshot_option_writes_a_non_blank_png(themed_app, tmp_path):
     from PySide6.QtGui import QImage
 
-    from isochor.app.launch import run_editor
+    from isochor.app.cli.launch import run_editor
 
     out = tmp_path / "shot.png"
     assert run_editor(None, str(out)) == 0
@@ -114,7 +114,7 @@ def test_screenshot_option_writes_a_non_blank_png(themed_app, tmp_path):
 def test_no_display_prints_one_line_and_exits_non_zero(monkeypatch, capsys):
     import sys
 
-    from isochor.app.launch import run_editor
+    from isochor.app.cli.launch import run_editor
 
     monkeypatch.setattr(sys, "platform", "linux")
     monkeypatch.delenv("DISPLAY", raising=False)
@@ -205,8 +205,8 @@ def test_pin_and_unpin_change_what_the_solver_moves(qtbot, window):
 
 
 def test_two_quick_drags_end_on_the_headless_solve_of_the_last(qtbot, window):
-    from isochor.core.generators import run_to_end
-    from isochor.core.multilevel import solve
+    from isochor.core.solve.generators import run_to_end
+    from isochor.core.solve.multilevel import solve
 
     win = window
     r1 = pickable_node(win, want_free=True)
@@ -240,7 +240,7 @@ def test_opening_a_refused_model_shows_the_error_and_keeps_the_document(qtbot, w
 
     from tests.gui.conftest import MODELS
 
-    pytest.importorskip("isochor.core.meshio")
+    pytest.importorskip("isochor.core.io.meshio")
     teapot = MODELS / "teapot.obj"
     if not teapot.exists():
         pytest.skip(f"{teapot} is not there")
@@ -262,10 +262,10 @@ def test_opening_a_refused_model_shows_the_error_and_keeps_the_document(qtbot, w
 def test_closing_mid_solve_of_the_armadillo_returns_within_a_second(qtbot, themed_app):
     import time
 
-    from isochor.app.document import Document
+    from isochor.app.editor.document import Document
     from tests.gui.conftest import MODELS, open_window
 
-    pytest.importorskip("isochor.core.meshio")
+    pytest.importorskip("isochor.core.io.meshio")
     path = MODELS / "armadillo_loop1_346k.ply"
     if not path.exists():
         pytest.skip(f"{path} is not there")

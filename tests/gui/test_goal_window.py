@@ -16,7 +16,7 @@ from tests.gui.test_editor import click, drag, pickable_node, point, screen_posi
 
 # -- helpers ------------------------------------------------------------------------------
 def rgb(color: str) -> np.ndarray:
-    from isochor.app.style import hex_to_rgb
+    from isochor.app.view.style import hex_to_rgb
 
     return np.array(hex_to_rgb(color), dtype=np.uint8)
 
@@ -82,9 +82,9 @@ def undo_key(win, redo: bool = False) -> None:
 
 
 def sphere_window(qtbot):
-    from isochor.app.document import Document
-    from isochor.core.problem import build
-    from isochor.core.scenario import Scenario
+    from isochor.app.editor.document import Document
+    from isochor.core.scenario.document import Scenario
+    from isochor.core.scenario.problem import build
 
     spec = {"model": {"builtin": "sphere", "n_levels": 4}, "lattice": {"nodes": [3, 3, 3]}}
     win = open_window(qtbot, Document(build(Scenario.from_dict(spec))))
@@ -98,7 +98,7 @@ def test_a_one_node_drag_holds_the_far_face_until_hold_far_side_is_unticked(qtbo
     from PySide6.QtCore import Qt
     from PySide6.QtTest import QTest
 
-    from isochor.app import style
+    from isochor.app.view import style
 
     win = sphere_window(qtbot)
     vp = win.viewport
@@ -177,8 +177,8 @@ def test_a_one_node_drag_holds_the_far_face_until_hold_far_side_is_unticked(qtbo
 # -- (b) folds ----------------------------------------------------------------------------
 def test_a_folded_result_is_marked_on_the_model_and_undo_clears_it(qtbot, window):
 
-    from isochor.app import style
-    from isochor.app.readout import TONES
+    from isochor.app.view import style
+    from isochor.app.window.readout import TONES
 
     win = window
     activate(qtbot, win)
@@ -272,7 +272,7 @@ def test_the_constraint_switches_are_undoable_edits(qtbot, window):
 
 # -- (d) a pin on one axis ----------------------------------------------------------------
 def test_a_node_pinned_on_z_keeps_its_z_and_moves_in_x_and_y(qtbot, window, monkeypatch):
-    from isochor.app import style
+    from isochor.app.view import style
 
     win = window
     row = pickable_node(win, want_free=True)
@@ -329,9 +329,9 @@ def test_a_node_pinned_on_z_keeps_its_z_and_moves_in_x_and_y(qtbot, window, monk
 
 # -- (e) two bodies -----------------------------------------------------------------------
 def _two_spheres(path):
+    from isochor.core.io.meshio import save_mesh
     from isochor.core.mesh import TriMesh
-    from isochor.core.meshio import save_mesh
-    from isochor.core.shapes import sphere_levels
+    from isochor.core.scenario.shapes import sphere_levels
 
     m = sphere_levels(4)[-1]
     small = m.vertices * 0.6 + [2.2, 0.0, 0.0]

@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 
-from isochor.app.cli import run_solve
+from isochor.app.cli.main import run_solve
 from tests.gui.conftest import open_window, save_shot, wait_idle
 from tests.gui.test_editor import click, drag, point, screen_positions
 from tests.gui.test_goal_window import rgb, undo_key
@@ -62,7 +62,7 @@ def handle_xy(win, i=0):
 def test_place_and_drag_a_handle_and_undo(qtbot, sphere):
     from PySide6.QtCore import Qt
 
-    from isochor.app import style
+    from isochor.app.view import style
 
     win = sphere
     vp = win.viewport
@@ -197,7 +197,7 @@ def test_a_mirrored_move_gives_a_symmetric_lattice(qtbot, sphere):
     save_shot(win, "symmetry_mirrored_move", show=choice)
 
     # a handle gets its mirror image, drawn dimmed (the solve adds it)
-    from isochor.app import style
+    from isochor.app.view import style
 
     mouse(win, "mouseClick", on_model(win, 0, 0), mods=Qt.KeyboardModifier.ControlModifier)
     assert len(win.state.handles) == 1 and len(vp.handles.targets) == 2
@@ -247,12 +247,12 @@ def test_scale_gesture_under_symmetry_mirrors_onto_the_partners(qtbot, sphere):
 
 
 def test_two_handles_on_the_cow_solve_as_the_command_line_does(qtbot, themed_app, tmp_path):
-    from isochor.core.problem import build
-    from isochor.core.scenario import Scenario
+    from isochor.core.scenario.document import Scenario
+    from isochor.core.scenario.problem import build
     from tests.models import model
 
     cow = model("cow.obj")
-    from isochor.core.meshio import load_mesh
+    from isochor.core.io.meshio import load_mesh
 
     mesh = load_mesh(cow).mesh
     v = np.asarray(mesh.vertices)

@@ -88,7 +88,7 @@ def _opened(qtbot, win, name, timeout) -> None:
 @pytest.fixture
 def slow_read(monkeypatch):
     """Loads wait for ``release`` before they read anything."""
-    from isochor.app import loading
+    from isochor.app.window import loading
 
     release = threading.Event()
     read = loading.read_document
@@ -177,7 +177,7 @@ def test_a_document_edited_during_the_load_is_kept_when_the_user_says_so(
 
 def _truncated_ply(path, keep=0.6):
     """A PLY of the club cut off after ``keep`` of its bytes."""
-    from isochor.core.meshio import load_mesh, mesh_bytes
+    from isochor.core.io.meshio import load_mesh, mesh_bytes
 
     data = mesh_bytes(load_mesh(_small_model()).mesh, ".ply")
     path.write_bytes(data[: int(len(data) * keep)])
@@ -196,7 +196,7 @@ def test_a_file_that_fails_to_load_keeps_the_document_and_says_why(qtbot, window
 
 @needs_armadillo
 def test_the_armadillo_opens_through_file_open_without_freezing(qtbot, window, monkeypatch):
-    from isochor.app import files, loading
+    from isochor.app.window import files, loading
 
     win = window
     assert loading.in_background(ARMADILLO)

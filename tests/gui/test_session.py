@@ -15,9 +15,9 @@ from tests.gui.conftest import open_window, run_cli, wait_idle
 
 
 def _sphere_obj(path, stretch=(1.0, 1.0, 1.0)):
+    from isochor.core.io.meshio import save_mesh
     from isochor.core.mesh import TriMesh
-    from isochor.core.meshio import save_mesh
-    from isochor.core.shapes import sphere_levels
+    from isochor.core.scenario.shapes import sphere_levels
 
     m = sphere_levels(4)[-1]
     save_mesh(path, TriMesh(m.vertices * np.asarray(stretch), m.faces))
@@ -26,7 +26,7 @@ def _sphere_obj(path, stretch=(1.0, 1.0, 1.0)):
 
 def test_screenshot_of_a_model_and_of_a_scenario_at_rest_exits(tmp_path):
     """Both used to hang forever: nothing to solve, so no solve ever 'ended'."""
-    from isochor.core.scenario import Scenario
+    from isochor.core.scenario.document import Scenario
 
     model = _sphere_obj(tmp_path / "ball.obj", stretch=(2.0, 1.0, 1.0))
     at_rest = tmp_path / "rest.json"
@@ -55,7 +55,7 @@ def test_screenshot_timeout_takes_the_picture_and_says_so(tmp_path):
 def test_a_screenshot_never_replaces_what_it_shows(tmp_path):
     """``--screenshot`` is an output like ``solve --out``: refused, before the window
     opens, when it names the scenario, the model or a folder; a link writes its target."""
-    from isochor.core.scenario import Scenario
+    from isochor.core.scenario.document import Scenario
 
     _sphere_obj(tmp_path / "ball.obj")
     scene = tmp_path / "scene.json"
@@ -158,7 +158,7 @@ def test_status_says_solving_stopped_and_dragging(qtbot, window):
 
 
 def test_a_model_opened_from_a_file_fills_the_view(qtbot, themed_app, tmp_path):
-    from isochor.app.document import Document
+    from isochor.app.editor.document import Document
 
     doc = Document.open(_sphere_obj(tmp_path / "long.obj", (3.0, 1.0, 1.0)))
     win = open_window(qtbot, doc, size=(1200, 800))
@@ -222,7 +222,7 @@ def test_quitting_with_discard_prints_no_traceback(tmp_path):
 import sys
 from PySide6.QtWidgets import QApplication, QMessageBox
 app = QApplication([])
-from isochor.app.mainwindow import MainWindow
+from isochor.app.window.mainwindow import MainWindow
 win = MainWindow()
 win.show()
 for _ in range(20):

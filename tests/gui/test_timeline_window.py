@@ -1,7 +1,7 @@
 """The timeline in the window (issue 13), driven with real mouse and key events: keys set at
 two frames with I, a node moved by a real drag in between; dragging the scrubber to a frame
 between the keys shows that frame's solved pose, the nodes the headless
-:func:`~isochor.core.sequence.solve_sequence` gives for it, with the volume kept; undo and
+:func:`~isochor.core.scenario.sequence.solve_sequence` gives for it, with the volume kept; undo and
 redo of a key take its marker away and back; going to a key loads its edit; playing; and a
 scenario with poses saved and opened again in the window has the same keys.
 """
@@ -53,11 +53,11 @@ def test_keys_scrub_to_a_solved_in_between_frame_undo_and_redo(qtbot, sphere, tm
     from PySide6.QtCore import Qt
     from PySide6.QtTest import QTest
 
-    from isochor.app import style
-    from isochor.core.generators import run_to_end
-    from isochor.core.problem import build
-    from isochor.core.scenario import Scenario
-    from isochor.core.sequence import solve_sequence
+    from isochor.app.view import style
+    from isochor.core.scenario.document import Scenario
+    from isochor.core.scenario.problem import build
+    from isochor.core.scenario.sequence import solve_sequence
+    from isochor.core.solve.generators import run_to_end
 
     win = sphere
     tool, panel, vp = win.timeline, win.timeline_panel, win.viewport
@@ -178,7 +178,7 @@ def _alt():
 
 
 def test_a_scenario_with_poses_round_trips_through_the_window(qtbot, themed_app, tmp_path):
-    from isochor.app.document import Document
+    from isochor.app.editor.document import Document
 
     spec = {
         **SPHERE,

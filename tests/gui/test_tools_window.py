@@ -103,7 +103,7 @@ def test_scale_a_layer_by_a_typed_factor_along_z_and_undo(qtbot, sphere):
 
 
 def style_axis(axis: str) -> str:
-    from isochor.app import style
+    from isochor.app.view import style
 
     return style.AXIS_COLOURS[axis]
 
@@ -339,7 +339,7 @@ def test_select_row_face_invert_and_visible_only_box(qtbot, sphere):
 
 # -- legibility ---------------------------------------------------------------------------
 def test_roles_have_shapes_and_the_legend_says_so(qtbot, sphere):
-    from isochor.app import glyphs, style
+    from isochor.app.view import glyphs, style
 
     win = sphere
     lat = win.state.lattice

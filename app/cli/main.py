@@ -1,0 +1,417 @@
+"""The ``isochor`` command: the editor, a headless solve, the examples.
+
+::
+
+    isochor                                   open the editor
+    isochor edit FILE [--screenshot out.png]  open a scenario or a model in the editor
+    isochor solve SCENARIO.json [--out deformed.ply] [--report report.json]
+    isochor solve --example NAME [--out ...] [--report ...]
+    isochor examples                          list the built-in examples
+    isochor --version
+
+Exit status:
+
+- 0 success;
+- 1 a user error: a bad or missing file, an open mesh, a number out of range, an output
+  that would replace an input or cannot be written (one line ``isochor: <message>``);
+- 2 a usage error (one line, pointing at ``--help``);
+- 3 the solve ran but did not reach the volume tolerance (the outputs are written,
+  ``converged`` is false in the report);
+- 70 an internal error: a bug (one line ``isochor: internal error: ...``; the traceback
+  only when ``ISOCHOR_DEBUG`` is set);
+- 128 + the signal when interrupted: 130 Ctrl-C, 143 SIGTERM, 129 SIGHUP (one line).
+
+The outputs of ``solve`` are a set (:mod:`isochor.core.io.atomic`): checked before the solve,
+then written all or none; a failure or an interrupt leaves no new file, no temporary
+file, and every existing file as it was. Python's warnings never reach standard error
+(set ``ISOCHOR_DEBUG`` to see them); the program's own are ``isochor: warning: ...`` lines.
+
+Only ``edit`` (and no command) imports the GUI; everything else runs without Qt.
+"""
+
+from __future__ import annotations
+
+# Signals first: a Ctrl-C or SIGTERM while the rest is imported is remembered and answered
+# by main() with one line, never a traceback.
+from . import interrupts
+
+interrupts.install()
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import os  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+import traceback  # noqa: E402
+import warnings  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO  # noqa: E402
+
+from ... import __version__  # noqa: E402
+from ...core.errors import IsochorError  # noqa: E402
+from .console import (  # noqa: E402
+    EXIT_ERROR,
+    EXIT_INTERNAL,
+    EXIT_NOT_CONVERGED,
+    EXIT_OK,
+    EXIT_USAGE,
+    PipeSafe,
+)
+
+# One BLAS thread unless the user says otherwise: the lattice products are small and the
+# solver shares the cores with the window; measured under load, a 125-node basis product
+# took 32 ms with two OpenBLAS threads and 1.4 ms with one. (Nothing imported above
+# imports numpy, so the setting still counts.)
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+if TYPE_CHECKING:
+    from ...core.scenario.problem import Problem
+    from ...core.solve.multilevel import SolveResult
+
+#: set (to anything but "" or "0") for Python's warnings and the traceback of an internal error
+DEBUG_VARIABLE = "ISOCHOR_DEBUG"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status (the console script exits with it).
+
+    Whatever happens, standard error gets one line per problem, each starting
+    ``isochor:``, and no temporary file is left behind.
+    """
+    from ...core.io.atomic import discard_pending
+
+    debug = os.environ.get(DEBUG_VARIABLE, "") not in ("", "0")
+    try:
+        interrupts.arm()
+        with warnings.catch_warnings():
+            if not debug:  # numpy's overflow warnings and the like: never on the user's screen
+                warnings.simplefilter("ignore")
+            args = _parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+            return args.run(args)
+    except BaseException as exc:
+        # a plain store first (no call, so no signal handler can run before it): from here
+        # on a signal is only noted, and the way out says one thing
+        interrupts.state.armed = False
+        return _status(exc, debug)
+    finally:
+        interrupts.state.armed = False
+        discard_pending()
+
+
+def entry() -> NoReturn:
+    """The ``isochor`` console script and ``python -m isochor``: :func:`main`, then exit
+    deaf to signals. The run is over and its status decided; a signal now must neither
+    change the status nor kill the interpreter while it shuts down (Python gives the
+    signals back to their default, deadly, action then)."""
+    status = main()
+    interrupts.ignore()
+    sys.exit(status)
+
+
+def _status(exc: BaseException, debug: bool) -> int:
+    """The one line and the exit status for what ended the run."""
+    if isinstance(exc, IsochorError):
+        return _fail(exc)
+    if isinstance(exc, interrupts.Interrupted):
+        return _fail(f"interrupted ({exc.name}); nothing was written", exc.status)
+    if isinstance(exc, KeyboardInterrupt):
+        return _fail("interrupted (SIGINT); nothing was written", 128 + 2)
+    if interrupts.state.raised is not None:  # a signal's exception that came out as another
+        signal = interrupts.Interrupted(interrupts.state.raised)
+        return _fail(f"interrupted ({signal.name}); nothing was written", signal.status)
+    if isinstance(exc, SystemExit):  # --help, --version, a usage error: argparse has spoken
+        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    if isinstance(exc, MemoryError):
+        return _fail("out of memory: the model is too large for this computer")
+    if isinstance(exc, OSError):  # a file that vanished or failed while being read
+        where = f"{exc.filename}: " if exc.filename else ""
+        return _fail(f"{where}{exc.strerror or exc}")
+    if debug:
+        traceback.print_exception(exc)
+    hint = "" if debug else f" (set {DEBUG_VARIABLE}=1 for the details)"
+    return _fail(f"internal error: {type(exc).__name__}: {exc}{hint}", EXIT_INTERNAL)
+
+
+def _fail(message: Any, status: int = EXIT_ERROR) -> int:
+    text = " ".join(str(message).replace("\0", " ").split())  # always one line
+    print(f"isochor: {text}", file=sys.stderr)
+    return status
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (exit 2), like every other message."""
+
+    def error(self, message: str):
+        _fail(f"{message} (see '{self.prog} --help')")
+        raise SystemExit(EXIT_USAGE)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="isochor",
+        description="Volume-preserving free-form deformation (Hirota, Maheshwari, Lin 1999). "
+        "Without a command, opens the editor.",
+    )
+    parser.add_argument("--version", action="version", version=f"isochor {__version__}")
+    parser.set_defaults(run=_edit, file=None, screenshot=None, timeout=None)
+    sub = parser.add_subparsers(title="commands", metavar="COMMAND")
+
+    edit = sub.add_parser("edit", help="open a scenario (.json) or a model in the editor")
+    edit.add_argument("file", type=Path, help="scenario .json, or an OBJ/PLY/STL/OFF model")
+    edit.add_argument(
+        "--screenshot",
+        type=Path,
+        metavar="PNG",
+        help="solve, render the window to this image and exit",
+    )
+    edit.add_argument(
+        "--timeout",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="with --screenshot: take the picture after this long even if the "
+        "solve has not ended (default 300)",
+    )
+    edit.set_defaults(run=_edit)
+
+    solve = sub.add_parser(
+        "solve",
+        help="solve a scenario without a window",
+        description="Load, solve with the multi-level optimizer, print one "
+        "row per level, write the deformed full-resolution mesh and a "
+        "JSON report. Exit status 3: finished without reaching the "
+        "volume tolerance (outputs written).",
+    )
+    what = solve.add_mutually_exclusive_group(required=True)
+    what.add_argument("scenario", nargs="?", type=Path, help="the scenario .json")
+    what.add_argument("--example", metavar="NAME", help="a built-in example (isochor examples)")
+    solve.add_argument(
+        "--out",
+        type=Path,
+        metavar="MESH",
+        help="the deformed model: .obj, .ply, .stl, .off, .glb or .gltf; in the model's own "
+        "format it keeps everything but the positions (UVs, polygons, normals transformed)",
+    )
+    solve.add_argument(
+        "--morph-target",
+        action="store_true",
+        help="glTF model to glTF: keep the original mesh and add the deformation as a "
+        "morph target (weight 1)",
+    )
+    solve.add_argument("--report", type=Path, metavar="JSON", help="the report (JSON)")
+    solve.add_argument("--quiet", "-q", action="store_true", help="no per-level table")
+    solve.add_argument(
+        "--sequence",
+        metavar="PATTERN",
+        help="solve the scenario's poses: one file per frame (frame_####.obj) or one animated .glb",
+    )
+    goal = solve.add_argument_group("what the solve holds (each overrides the scenario's)")
+    goal.add_argument(
+        "--target", type=float, metavar="RATIO", help="the volume to reach, / the model's"
+    )
+    goal.add_argument(
+        "--preserve",
+        choices=("total", "per-body"),
+        help="one total volume, or each closed body's own",
+    )
+    goal.add_argument(
+        "--keep-centroid",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="keep the solid's centre of mass where it was",
+    )
+    goal.add_argument(
+        "--anchor",
+        choices=("far-side", "none"),
+        help="far-side: while too little is fixed, hold the lattice face away from the "
+        "moved nodes; none: let the lattice drift (the paper)",
+    )
+    goal.add_argument(
+        "--symmetry",
+        choices=("none", "x", "y", "z"),
+        help="keep the edit and the result mirror images across that mid-plane of the lattice",
+    )
+    goal.add_argument(
+        "--fold-guard",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="penalise folding the model inside out (on by default)",
+    )
+    solve.set_defaults(run=_solve)
+
+    examples = sub.add_parser("examples", help="list the built-in examples")
+    examples.set_defaults(run=_examples)
+    return parser
+
+
+# -- edit ---------------------------------------------------------------------------------
+def _edit(args: argparse.Namespace) -> int:
+    interrupts.release()  # the editor keeps the default handling of signals
+    try:
+        from .launch import run_editor  # Qt is imported only for the editor
+    except ImportError as exc:
+        return _fail(f"the editor cannot start: {exc}")
+    file = str(args.file) if args.file is not None else None
+    shot = str(args.screenshot) if args.screenshot is not None else None
+    return int(run_editor(file, shot, timeout=args.timeout) or 0)
+
+
+# -- examples -----------------------------------------------------------------------------
+def _examples(args: argparse.Namespace) -> int:
+    from ...core.scenario.examples import EXAMPLES
+
+    width = max(len(n) for n in EXAMPLES)
+    for name, text in EXAMPLES.items():
+        print(f"{name:<{width}}  {text}")
+    return EXIT_OK
+
+
+# -- solve --------------------------------------------------------------------------------
+def _solve(args: argparse.Namespace) -> int:
+    from ...core.export import export_bytes
+    from ...core.io.atomic import check_outputs, write_outputs
+    from ...core.io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
+    from ...core.report import make_report
+    from ...core.scenario.document import Scenario
+    from ...core.scenario.problem import build
+
+    if args.example is not None:
+        from ...core.scenario.examples import example_scenario
+
+        scenario, source = example_scenario(args.example), f"example {args.example}"
+        inputs = []
+    else:
+        scenario, source = Scenario.read(args.scenario), str(args.scenario)
+        inputs = [(args.scenario, "the scenario")]
+    scenario = _with_goal(scenario, args)
+    if "path" in scenario.model:
+        inputs.append((scenario.model_path(), "the model"))
+    if args.sequence is not None:
+        from .sequence import run_sequence
+
+        return run_sequence(args, scenario, inputs, source)
+    # every output is checked against the inputs and the others before any work
+    wanted = [(p, role) for p, role in ((args.out, "--out"), (args.report, "--report")) if p]
+    outputs = check_outputs(wanted, inputs)
+    if args.out is not None and args.out.suffix.lower() not in WRITE_FORMATS:
+        raise IsochorError(f"{args.out}: --out must end in {listing(WRITE_FORMATS)}")
+    if args.morph_target and (
+        args.out is None
+        or args.out.suffix.lower() not in GLTF_FORMATS
+        or "path" not in scenario.model
+        or scenario.model_path().suffix.lower() not in GLTF_FORMATS
+    ):
+        raise IsochorError("--morph-target needs a glTF model and --out ending in .glb or .gltf")
+    t0 = time.perf_counter()
+    problem = build(scenario)
+    for w in problem.warnings:
+        print(f"isochor: warning: {w}", file=sys.stderr)
+    console = PipeSafe(sys.stdout)
+    out = None if args.quiet else console
+    result = run_solve(problem, out)
+    total = time.perf_counter() - t0
+    exported = None
+    if args.out is not None:
+        exported = export_bytes(problem, result.nodes, args.out, morph_target=args.morph_target)
+    report = make_report(problem, result, source, total)
+    report["export_notes"] = list(exported.notes) if exported is not None else []
+    # everything is computed before anything is written: an error or a signal up to here
+    # leaves no file; then the outputs are written as a set, all or none
+    files = []
+    for o in outputs:
+        if o.role == "--out":
+            files.append((o, exported.data))
+        else:
+            files.append((o, (json.dumps(report, indent=2, allow_nan=False) + "\n").encode()))
+    # a signal stops the run until the first output is renamed into place; from then on
+    # the run completes (the files are in place, so exit 0 or 3 is the truth)
+    write_outputs(files, on_commit=interrupts.hold)
+    for note in exported.notes if exported is not None else ():
+        print(f"isochor: note: {note}", file=sys.stderr)
+    _summary(result, args, console)
+    if result.converged and not result.handles_met:  # the best fit, said as a warning
+        print(f"isochor: warning: {result.message}", file=sys.stderr)
+    if not result.converged:
+        folded = result.folds is not None and result.folds.folded
+        what = "" if folded else "the solve did not converge: "  # the message says "folded"
+        print(f"isochor: {what}{result.message}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    return EXIT_OK
+
+
+def _with_goal(scenario, args: argparse.Namespace):
+    """The scenario with the goal options of the command line."""
+    from ...core.goal.constraints import check_ratio
+
+    changes: dict[str, Any] = {}
+    if args.target is not None:
+        changes["target_volume_ratio"] = check_ratio(args.target, "--target")
+    for key in ("preserve", "keep_centroid", "anchor", "fold_guard", "symmetry"):
+        if getattr(args, key) is not None:
+            changes[key] = getattr(args, key)
+    return scenario.with_(**changes) if changes else scenario
+
+
+def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:
+    """Drive :func:`core.solve.multilevel.solve` to its end, printing one row per level.
+
+    Ctrl-C closes the generator (the solve stops at once) and is raised again.
+
+    Returns
+    -------
+    core.solve.multilevel.SolveResult
+    """
+    from ...core.solve.generators import run_to_end
+    from ...core.solve.multilevel import solve
+
+    sc = problem.scenario
+    run = solve(
+        problem.surface,
+        problem.nodes,
+        problem.fixed,
+        goal=sc.goal,
+        handles=sc.handles,
+        options=problem.options,
+    )
+    if out is not None:
+        print(
+            f"{'level':>5} {'triangles':>10} {'max dX %':>9} {'steps':>6} {'ms':>8} {'|dV|/V0':>9}",
+            file=out,
+            flush=True,
+        )
+    last = [0.0]
+
+    def row(p) -> None:
+        if p.level_done and out is not None:
+            change = 100 * p.max_node_change if p.max_node_change is not None else 0.0
+            print(
+                f"{p.level:>5} {p.triangles:>10} {change:>9.3f} {p.step:>6} "
+                f"{1000 * (p.elapsed - last[0]):>8.1f} {abs(p.rel_volume_error):>9.2e}",
+                file=out,
+                flush=True,
+            )
+        if p.level_done:
+            last[0] = p.elapsed
+
+    return run_to_end(run, row)
+
+
+def _summary(result: SolveResult, args: argparse.Namespace, out: PipeSafe) -> None:
+    if args.quiet:
+        return
+    print(
+        f"volume {result.volume_original:.6g} -> {result.volume_final:.6g} "
+        f"(target {result.volume_target:.6g}, error {result.rel_volume_error:+.2e}); "
+        f"{result.free_nodes} free nodes; {result.elapsed:.2f} s",
+        file=out,
+    )
+    for path in (args.out, args.report):
+        if path is not None:
+            print(f"wrote {path}", file=out)
+    out.flush()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

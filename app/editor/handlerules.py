@@ -1,0 +1,157 @@
+"""Surface handles in the editor (Qt-free): place, select, move and remove them, and the drag
+of a handle's target.
+
+A handle (:class:`isochor.core.goal.handles.Handle`) is a point of the model at rest (``at``)
+and the place it must land (``to``); the solve moves the lattice so that the deformed point
+follows. A click on the model gives a triangle of the full mesh as drawn (deformed) and the
+barycentric weights of the hit point; the same weights on the same triangle of the rest
+mesh give ``at`` (:meth:`HandleRules.rest_point`). With symmetry on, the solve adds each
+handle's mirror image; the document keeps the user's handles only.
+
+:class:`HandleRules` is a part of :class:`~isochor.app.editor.document.Document`: it uses the
+document's ``state``, ``cell``, ``drag``, ``handle``, ``base_nodes``, ``select`` and
+``_emit``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...core.goal.handles import Handle
+from .goalrules import Edit
+from .state import StateCell
+
+
+class HandleDrag:
+    """A drag of one handle's target, with the drag session's interface
+    (:class:`~isochor.app.editor.drag.DragSession`): no node is under the cursor, the handle's
+    ``to`` is. ``index`` is the handle's place in ``handles`` (a new handle is the last)."""
+
+    def __init__(self, before: StateCell, handles, index: int, base: np.ndarray, verb: str) -> None:
+        self.before = before
+        self.handles = tuple(handles)
+        self.index = int(index)
+        self.start = np.array(self.handles[self.index].to, dtype=np.float64)
+        self.base = np.array(base, dtype=np.float64)
+        self.nodes = self.base.copy()
+        self.rows = np.zeros(0, dtype=int)
+        self.selected = self.rows
+        self.verb = verb
+
+    @property
+    def text(self) -> str:
+        return self.verb
+
+    @property
+    def target(self) -> np.ndarray:
+        """(3,) where the handle's point must land now."""
+        return np.array(self.handles[self.index].to)
+
+    def move(self, delta, free: np.ndarray | None = None) -> np.ndarray:
+        """The handle's target at ``start + delta``; returns the nodes to show (the start,
+        or the newest live preview ``free``)."""
+        handles = list(self.handles)
+        to = self.start + np.asarray(delta, dtype=np.float64)
+        handles[self.index] = handles[self.index].moved_to(to)
+        self.handles = tuple(handles)
+        self.nodes = self.base.copy() if free is None else np.array(free, dtype=np.float64)
+        return self.nodes
+
+    def with_dragged(self, nodes: np.ndarray) -> np.ndarray:
+        return np.array(nodes, dtype=np.float64)
+
+    def fixed(self) -> np.ndarray:
+        return self.before.state.fixed_axes.copy()
+
+    def finish(self, free: np.ndarray | None = None) -> Edit:
+        """The edit: the handles as dropped, the solve starting from the nodes on screen."""
+        nodes = self.nodes if free is None else np.array(free, dtype=np.float64)
+        return Edit(self.before.state.edited(nodes=nodes, handles=self.handles), self.text)
+
+
+class HandleRules:
+    """Handle edits and the handle selection, mixed into the document."""
+
+    # -- where handles are -----------------------------------------------------------------
+    def rest_point(self, face: int, weights) -> np.ndarray:
+        """(3,) the model's rest point at barycentric ``weights`` of full-mesh triangle
+        ``face`` (the triangle and weights of a hit on the mesh as drawn)."""
+        full = self.state.surface.full
+        corners = np.asarray(full.vertices)[np.asarray(full.faces)[int(face)]]
+        return np.asarray(weights, dtype=np.float64) @ corners
+
+    def handle_points(self, nodes: np.ndarray | None = None, handles=None) -> np.ndarray:
+        """(h, 3) where each handle's point is with ``nodes`` (default: on screen)."""
+        handles = self.state.handles if handles is None else handles
+        if not handles:
+            return np.zeros((0, 3))
+        nodes = self.base_nodes() if nodes is None else nodes
+        at = np.array([h.at for h in handles], dtype=np.float64)
+        return np.array(self.state.lattice.deform(at, nodes))
+
+    def mirror_handles(self, handles=None) -> tuple[Handle, ...]:
+        """The mirror images the solve adds with symmetry on (none with it off)."""
+        handles = self.state.handles if handles is None else handles
+        m = self.state.mirror
+        return () if m is None else tuple(m.handle(h) for h in handles)
+
+    # -- selection -------------------------------------------------------------------------
+    def select_handle(self, index: int | None) -> bool:
+        """Select handle ``index`` (None: no handle); a selected handle deselects the nodes.
+        Returns True when it changed."""
+        if index is not None and not 0 <= index < len(self.state.handles):
+            raise IndexError(f"no handle {index}")
+        if index == self.handle:
+            return False
+        self.handle = index
+        if index is not None and len(self.selection):
+            self.selection = np.zeros(0, dtype=int)
+        self._emit("selection")
+        return True
+
+    # -- edits -------------------------------------------------------------------------------
+    def edit_add_handle(self, at, to=None) -> Edit:
+        """A new handle on the model's rest point ``at``, to land at ``to`` (default: where
+        the point is on screen, so nothing moves until it is dragged)."""
+        at = np.asarray(at, dtype=np.float64).reshape(3)
+        if to is None:
+            to = self.handle_points(handles=(Handle(at, at),))[0]
+        st = self.state
+        handles = (*st.handles, Handle(at, to))
+        return Edit(st.edited(nodes=self.base_nodes(), handles=handles), "Add handle")
+
+    def edit_move_handle(self, index: int, to) -> Edit | None:
+        st = self.state
+        h = st.handles[index]
+        to = tuple(float(v) for v in np.asarray(to, dtype=np.float64).reshape(3))
+        if to == h.to:
+            return None
+        handles = list(st.handles)
+        handles[index] = h.moved_to(to)
+        return Edit(st.edited(nodes=self.base_nodes(), handles=tuple(handles)), "Move handle")
+
+    def edit_remove_handle(self, index: int | None = None) -> Edit | None:
+        """Remove handle ``index`` (default: the selected one)."""
+        index = self.handle if index is None else index
+        st = self.state
+        if index is None or not 0 <= index < len(st.handles):
+            return None
+        handles = st.handles[:index] + st.handles[index + 1 :]
+        return Edit(st.edited(nodes=self.base_nodes(), handles=handles), "Remove handle")
+
+    # -- the drag of a handle ------------------------------------------------------------------
+    def begin_handle_drag(self, index: int | None = None, at=None) -> HandleDrag | None:
+        """Drag handle ``index``'s target, or a new handle on rest point ``at`` (placed where
+        that point is on screen)."""
+        st = self.state
+        base = self.base_nodes()
+        if index is None:
+            if at is None:
+                return None
+            at = np.asarray(at, dtype=np.float64).reshape(3)
+            to = self.handle_points(base, (Handle(at, at),))[0]
+            handles, index, verb = (*st.handles, Handle(at, to)), len(st.handles), "Add handle"
+        else:
+            handles, verb = st.handles, "Move handle"
+        self.drag = HandleDrag(self.cell, handles, index, base, verb)
+        return self.drag

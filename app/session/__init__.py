@@ -1,0 +1,10 @@
+"""The editing session: QObjects with no widgets, between the editor model and the window.
+
+- :mod:`.controller`  EditorSession: document + undo stack + solve worker + frame scheduling
+- :mod:`.drag`        the session's drags and the live preview solves while one runs
+- :mod:`.commands`    undo commands acting on the document
+- :mod:`.worker`      SolveWorker: the core's solve generator on a background thread;
+  records reach the GUI thread by queued signals
+- :mod:`.framesolver` the timeline's frames solved in the background
+- :mod:`.reader`      the child process that reads a big model and builds its pyramid
+"""

@@ -1,0 +1,371 @@
+"""The main window: the shell around the editing session.
+
+The window holds no editing state. The :class:`~isochor.app.session.controller.EditorSession` owns
+the document, the undo stack, the solver worker and the frame schedule; the window turns what
+the user does into calls on it (edits come from the document's rules) and draws what its
+signals say: the view (:mod:`isochor.app.view.viewport`), the Inspector panel, the convergence
+plot; the status bar, the notes and the marks on the view are :mod:`isochor.app.window.readout`.
+Menus and the toolbar are :mod:`isochor.app.window.actions`; the file commands
+:mod:`isochor.app.window.files`; the frames (a big model's proxy while it moves)
+:mod:`isochor.app.window.framedraw`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from PySide6.QtCore import QPoint, Qt, QTimer, Signal
+from PySide6.QtGui import QIcon
+from PySide6.QtWidgets import QDockWidget, QMainWindow, QMenu, QMessageBox, QScrollArea
+
+from ... import assets
+from ...core.errors import IsochorError
+from ..editor.document import Document, plural
+from ..session.controller import EditorSession
+from ..view.viewport import Viewport
+from . import actions, handletools, tools
+from .files import FileCommands
+from .framedraw import FramesMixin
+from .panel import Panel, bind
+from .plot import ConvergencePlot
+from .readout import Readout
+
+
+class MainWindow(FramesMixin, QMainWindow):
+    """The editor window.
+
+    Signals
+    -------
+    solveDone(int, bool) : a solve the session accepted ended (generation, success)
+    idle() : nothing runs and the last frame is drawn
+    """
+
+    solveDone = Signal(int, bool)
+    idle = Signal()
+
+    def __init__(self, document: Document | None = None) -> None:
+        super().__init__()
+        self.setWindowTitle("Isochor")
+        self.setWindowIcon(QIcon(str(assets.icon_path())))
+        self.resize(1360, 860)
+        self.headless_errors = False  # screenshot mode: errors to stderr, no dialogs
+        self.redraws = 0  # frames drawn (the tests read it)
+        self._frame_after_solve = False
+        self._closed = False
+        self.viewport = Viewport(self)
+        self.setCentralWidget(self.viewport)
+        self.session = EditorSession(document if document is not None else Document.example(), self)
+        # a paint outside a frame (Qt's, after a mouse move or an overlay change) holds the
+        # solver too, like a frame does (see isochor.app.session.worker)
+        self.viewport.paint_hold = self.session.worker.held
+        self.files = FileCommands(self)
+        self.panel = Panel()
+        self.plot = ConvergencePlot()
+        self.plot.deferred = True  # repainted with the frames (_draw)
+        self._build_docks()
+        actions.build(self)
+        self.readout = Readout(self)
+        self._connect()
+        self._document_loaded()
+        self._status_changed()
+
+    # -- what the tests and the launcher use ---------------------------------------------------
+    @property
+    def doc(self) -> Document:
+        return self.session.document
+
+    @property
+    def state(self):
+        return self.session.document.state
+
+    @property
+    def undo_stack(self):
+        return self.session.undo_stack
+
+    @property
+    def worker(self):
+        return self.session.worker
+
+    def is_solving(self) -> bool:
+        """A solve runs, or waits for the first frame to start."""
+        return self.session.busy()
+
+    # -- construction --------------------------------------------------------------------------
+    def _build_docks(self) -> None:
+        scroll = QScrollArea()
+        scroll.setWidget(self.panel)
+        scroll.setWidgetResizable(True)
+        scroll.setFrameShape(QScrollArea.Shape.NoFrame)
+        # wide enough for the panel and a vertical scroll bar: never a horizontal one
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        bar = scroll.verticalScrollBar().sizeHint().width()
+        scroll.setMinimumWidth(self.panel.minimumSizeHint().width() + bar)
+        self.inspector_scroll = scroll
+        features = QDockWidget.DockWidgetFeature
+        self.inspector_dock = QDockWidget("Inspector", self)
+        self.inspector_dock.setObjectName("inspector")
+        self.inspector_dock.setWidget(scroll)
+        self.inspector_dock.setFeatures(features.DockWidgetMovable | features.DockWidgetFloatable)
+        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, self.inspector_dock)
+        self.plot_dock = QDockWidget("Convergence", self)
+        self.plot_dock.setObjectName("convergence")
+        self.plot_dock.setWidget(self.plot)
+        self.plot_dock.setFeatures(
+            features.DockWidgetMovable | features.DockWidgetFloatable | features.DockWidgetClosable
+        )
+        self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, self.plot_dock)
+        self.resizeDocks([self.plot_dock], [190], Qt.Orientation.Vertical)
+
+    def _connect(self) -> None:
+        s, vp, p = self.session, self.viewport, self.panel
+        s.documentLoaded.connect(self._document_loaded)
+        s.sceneChanged.connect(self._scene_changed)
+        s.stateChanged.connect(self._state_changed)
+        s.selectionChanged.connect(self._selection_changed)
+        s.statusChanged.connect(self._status_changed)
+        self.act_preserve.toggled.connect(lambda _: self.readout.show_state())
+        s.frameReady.connect(self._draw)
+        s.solveStarted.connect(self._solve_started)
+        s.recordAccepted.connect(self._record)
+        s.solveDone.connect(self._solve_done)
+        s.failed.connect(lambda message: self.error("The solver stopped", message))
+        s.idle.connect(self.idle.emit)
+        s.view_busy = self._view_busy  # idle once the full mesh is drawn
+        vp.moving_hint = self.moving
+        s.flushed.connect(vp.finish_model)
+        vp.modelDrawn.connect(lambda: self.readout.frame(None))
+        # solves start after the view's first paint (queued: not from inside the paint)
+        vp.firstPainted.connect(s.view_ready, Qt.ConnectionType.QueuedConnection)
+        s.undo_stack.cleanChanged.connect(self.update_title)
+        vp.selectRequested.connect(lambda rows, mode: self.doc.select(rows, mode))
+        vp.dragStarted.connect(self._drag_started)
+        vp.dragMoved.connect(s.drag_to)
+        vp.dragFinished.connect(self._drag_finished)
+        vp.dragCanceled.connect(self._drag_canceled)
+        vp.lockChanged.connect(lambda text: vp.show_info(s.drag_text(text)))
+        tools.connect(self)
+        handletools.connect(self)
+        self.timeline.connect()
+        vp.contextMenuRequested.connect(
+            lambda row, pos: self.exec_menu(self.context_menu(row), pos)
+        )
+        vp.fileDropped.connect(
+            lambda path: QTimer.singleShot(0, lambda: self.files.open_path(path))
+        )
+        p.positionEdited.connect(self.type_position)
+        p.pinClicked.connect(lambda on: self.set_pins(self.doc.selection, on))
+        p.pinAxisClicked.connect(
+            lambda axis, on: self.commit_edit(self.doc.edit_pin_axis(self.doc.selection, axis, on))
+        )
+        g = p.goal
+        g.anchorClicked.connect(lambda on: self.commit_edit(self.doc.edit_anchor(on)))
+        g.centroidClicked.connect(lambda on: self.commit_edit(self.doc.edit_keep_centroid(on)))
+        g.preserveChosen.connect(lambda mode: self.commit_edit(self.doc.edit_preserve(mode)))
+        g.foldGuardClicked.connect(lambda on: self.commit_edit(self.doc.edit_fold_guard(on)))
+        p.pin_all.clicked.connect(self.act_pin_all.trigger)
+        p.unpin_all.clicked.connect(self.act_unpin_all.trigger)
+        p.targetEdited.connect(self.set_target)
+        p.latticeRequested.connect(self.rebuild_lattice)
+        p.solve_button.clicked.connect(self.solve_again)
+        p.reset_button.clicked.connect(self.act_reset.trigger)
+        for action, box in (
+            (self.act_preserve, p.preserve_box),
+            (self.act_live, p.live_box),
+            (self.act_lattice, p.lattice_box),
+            (self.act_diag, p.diag_box),
+            (self.act_ghost, p.ghost_box),
+            (self.act_smooth, p.smooth_box),
+        ):
+            bind(action, box)
+
+    # -- session -> widgets --------------------------------------------------------------------
+    def _document_loaded(self) -> None:
+        st = self.state
+        self._rebuild_scene(reset_camera=True)
+        self.plot.reset(
+            st.surface.size, st.problem.scenario.tol_volume, st.problem.scenario.tol_nodes
+        )
+        self._frame_after_solve = True  # once the opening solve ends, fit it in the view
+        self.update_title()
+        for w in st.problem.warnings:
+            self.statusBar().showMessage(w, 10000)
+        self._state_changed()
+
+    def _scene_changed(self) -> None:
+        self._rebuild_scene(reset_camera=False)
+
+    def _rebuild_scene(self, reset_camera: bool) -> None:
+        st = self.state
+        up = "z" if "builtin" in st.problem.scenario.model else "y"
+        self.viewport.set_scene(
+            st.surface,
+            self.doc.view_nodes(),
+            st.pin_axes,
+            st.moved,
+            up=up,
+            reset_camera=reset_camera,
+        )
+        self.display_changed()
+        self.panel.show_shape(st.lattice.shape)
+
+    def _state_changed(self) -> None:
+        st = self.state
+        self.readout.show_state()
+        self.panel.show_target(st.target_ratio * 100)
+        handletools.show(self)
+        self._selection_changed(repaint=False)  # (the state's frame follows: it repaints)
+        self._status_changed()
+
+    def _selection_changed(self, repaint: bool = True) -> None:
+        self.viewport.set_selection(self.doc.selection, repaint)
+        self._show_selection()
+
+    def _show_selection(self) -> None:
+        """The Inspector's selection fields, at the nodes as drawn."""
+        st = self.state
+        self.panel.show_selection(
+            st.lattice,
+            self.doc.selection,
+            self.viewport.nodes,
+            st.pin_axes,
+            st.moved,
+            step=st.surface.size / 100,
+            held=self.readout.held_mask,
+        )
+
+    def _status_changed(self) -> None:
+        self.readout.status_changed()
+
+    def update_title(self, *_args) -> None:
+        star = "" if self.session.undo_stack.isClean() else " *"
+        self.setWindowTitle(f"{self.doc.title}{star} — Isochor")
+
+    # -- edits ---------------------------------------------------------------------------------
+    def _drag_started(self) -> None:
+        self._frame_after_solve = False
+        if self.session.begin_drag():
+            self.viewport.scene.set_folds(None)  # they belong to the nodes before the drag
+            self.viewport.show_info(self.session.drag_text())
+
+    def _drag_finished(self) -> None:
+        self.viewport.show_info("")
+        self.session.finish_drag()
+
+    def _drag_canceled(self) -> None:
+        self.viewport.show_info("")
+        self.session.cancel_drag()
+
+    def commit_edit(self, edit) -> bool:
+        """Commit ``edit`` (from a document rule) as one undo step; False: nothing to do."""
+        self._frame_after_solve = False
+        return self.session.commit(edit)
+
+    def type_position(self, axis: int, value: float) -> None:
+        self.commit_edit(self.doc.edit_position(axis, value))
+
+    def toggle_pin(self) -> None:
+        if len(self.doc.selection) == 0:
+            self.statusBar().showMessage("Select nodes to pin first.", 3000)
+            return
+        self.commit_edit(self.doc.edit_toggle_pin())
+
+    def set_pins(self, rows, pin: bool) -> None:
+        """Pin (or unpin) ``rows``; None means every node. One undo step."""
+        self.commit_edit(self.doc.edit_pins(rows, pin))
+
+    def pin_on(self, axes: str) -> None:
+        """Pin the selection on ``axes`` only (one undo step)."""
+        if len(self.doc.selection) == 0:
+            self.statusBar().showMessage("Select nodes to pin first.", 3000)
+            return
+        self.commit_edit(self.doc.edit_pin_axes(self.doc.selection, axes))
+
+    def set_target(self, percent: float) -> None:
+        try:
+            self.commit_edit(self.doc.edit_target(percent))
+        except IsochorError as exc:
+            self.panel.show_target(self.state.target_ratio * 100)
+            self.error("Cannot set the target volume", str(exc))
+
+    def rebuild_lattice(self, shape) -> None:
+        try:
+            self.commit_edit(self.doc.edit_lattice(shape))
+        except IsochorError as exc:
+            self.error("Cannot rebuild the lattice", str(exc))
+
+    def solve_again(self) -> None:
+        if not self.session.solve_again():
+            self.statusBar().showMessage("Turn on “Preserve volume” to solve.", 4000)
+
+    # -- display -------------------------------------------------------------------------------
+    def display_changed(self, _=None) -> None:
+        scene = self.viewport.scene
+        if scene.built:
+            scene.set_lattice_visible(self.act_lattice.isChecked(), self.act_diag.isChecked())
+            scene.set_ghost(self.act_ghost.isChecked())
+            if scene.smooth != self.act_smooth.isChecked():
+                scene.set_smooth(self.act_smooth.isChecked())
+            self.viewport.show_gizmo()
+        self.viewport.update()
+
+    def context_menu(self, row: int) -> QMenu:
+        """The right-click menu for node ``row`` (-1: empty space): pins and selection."""
+        if row >= 0 and row not in self.doc.selection:
+            self.doc.select([row])
+        menu = QMenu(self)
+        rows = self.doc.selection.copy()
+        if len(rows):
+            fixed = bool(self.state.fixed[rows].all())
+            what = plural(len(rows))
+            menu.addAction(
+                f"Unpin {what}" if fixed else f"Pin {what}", lambda: self.set_pins(rows, not fixed)
+            )
+            for a in self.act_pin_axes:
+                menu.addAction(a)
+            menu.addSeparator()
+        for a in (self.act_pin_all, self.act_unpin_all, None, self.act_select_all, self.act_frame):
+            menu.addSeparator() if a is None else menu.addAction(a)
+        return menu
+
+    def exec_menu(self, menu: QMenu, pos: QPoint) -> None:
+        menu.exec(pos)
+
+    # -- messages ------------------------------------------------------------------------------
+    def error(self, title: str, message: str) -> None:
+        if self.headless_errors:
+            print(f"isochor: {message}", file=sys.stderr)
+            return
+        QMessageBox.critical(self, title, message)
+
+    def show_controls(self) -> None:
+        QMessageBox.information(self, "Controls", tools.CONTROLS_HTML)
+
+    def show_about(self) -> None:
+        from ... import __version__
+
+        QMessageBox.about(
+            self,
+            "About Isochor",
+            f"<b>Isochor</b> {__version__}<br>Volume-preserving free-form "
+            "deformation after Hirota, Maheshwari and Lin (1999).",
+        )
+
+    # -- closing -------------------------------------------------------------------------------
+    def closeEvent(self, ev) -> None:
+        if not self.files.confirm_discard():
+            ev.ignore()
+            return
+        self.shutdown()
+        super().closeEvent(ev)
+
+    def shutdown(self) -> None:
+        """Stop the session (waits at most half a second for the solver), release VTK.
+        Safe to call more than once."""
+        if self._closed:
+            return
+        self._closed = True
+        # nothing may reach this window once it is going away
+        self.session.undo_stack.cleanChanged.disconnect(self.update_title)
+        self.timeline.shutdown()
+        self.session.shutdown()
+        self.viewport.close()

@@ -1,0 +1,290 @@
+"""What a solve holds besides the pinned nodes: the :class:`Goal`, and its constraints on
+one pyramid level as functions of the node positions.
+
+The paper keeps one number, the total signed volume. A goal may instead keep
+
+* the volume of every solid body (``preserve="per-body"``: the parts of an assembly keep
+  their proportions). A body is a closed shell together with the cavities directly inside
+  it (by :func:`isochor.core.bodies.arrange`), so a hollow part keeps its material volume;
+* the centre of mass of the solid (``keep_centroid``, the paper's future work): three more
+  constraints ``M(X) - V(X) C0 = 0``, where ``M`` is the first moment (exact for the
+  triangle mesh, :class:`isochor.core.volume.MomentOperator`). With the volume held at
+  ``t V0`` this is exactly ``C = C0``, and unlike ``M / V`` it is a polynomial in the nodes.
+
+Every constraint is normalised so that ``|c_i| <= tol_volume`` means it is met:
+
+* a volume by ``min(1, t) |V0|``: the error is measured against the original volume and,
+  for a shrinking target, against the target too (a target of 1% of the volume must not
+  pass with 50% of the target missing);
+* the centroid by ``CENTROID_SCALE * t |V0| * size``: met means the centre of mass moved by
+  at most ``CENTROID_SCALE * tol_volume`` of the object's size.
+
+Each level measures against its own rest values (the paper's Eq 27), so a coarse level's
+discretisation error does not show up as a constraint violation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from functools import cached_property
+
+import numpy as np
+
+from ..bodies import arrange
+from ..errors import IsochorError
+from ..io.repair import body_labels, compact
+from ..lattice import Lattice, PointBasis
+from ..mesh import TriMesh
+from ..volume import MomentOperator, VolumeOperator, face_volumes
+
+PRESERVE = ("total", "per-body")
+ANCHORS = ("far-side", "none")
+SYMMETRIES = ("none", "x", "y", "z")
+#: the volume ratios a lattice deformation reaches without folding the model: measured on
+#: the shared models (docs/CONSTRAINTS.md), beyond these the solve folds or fails
+RATIO_RANGE = (0.05, 20.0)
+#: the centroid is held to this fraction of the volume tolerance, in object sizes
+CENTROID_SCALE = 0.1
+
+
+@dataclass(frozen=True)
+class Goal:
+    """What the solve must hold.
+
+    Attributes
+    ----------
+    target_ratio : final volume over the rest volume (of every body with ``per-body``)
+    preserve : ``"total"`` (the paper: one volume) or ``"per-body"``
+    keep_centroid : also keep the solid's centre of mass where it was
+    anchor : ``"far-side"``: when the fixed nodes leave the lattice free to move rigidly, the
+        lattice face farthest from the moved nodes is held too (no rigid drift); ``"none"``:
+        the paper's behaviour
+    fold_guard : penalise a nearly inverted deformation (det J near zero) so that the solver
+        does not meet the volume by turning part of the model inside out
+    symmetry : ``"x"``, ``"y"`` or ``"z"``: the edit and the result are mirror images across
+        that mid-plane of the lattice (:mod:`isochor.core.goal.symmetry`); ``"none"``
+    """
+
+    target_ratio: float = 1.0
+    preserve: str = "total"
+    keep_centroid: bool = False
+    anchor: str = "far-side"
+    fold_guard: bool = True
+    symmetry: str = "none"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "target_ratio", check_ratio(self.target_ratio))
+        if self.preserve not in PRESERVE:
+            raise IsochorError(f"preserve: must be one of {', '.join(PRESERVE)}")
+        if self.anchor not in ANCHORS:
+            raise IsochorError(f"anchor: must be one of {', '.join(ANCHORS)}")
+        if self.symmetry not in SYMMETRIES:
+            raise IsochorError(f"symmetry: must be one of {', '.join(SYMMETRIES)}")
+
+
+def check_ratio(ratio: float, where: str = "target volume ratio") -> float:
+    """``ratio`` if the method can reach it, else an error that says what it can reach."""
+    lo, hi = RATIO_RANGE
+    try:
+        value = float(ratio)
+    except (TypeError, ValueError):
+        value = float("nan")
+    if isinstance(ratio, bool) or not lo <= value <= hi:
+        raise IsochorError(
+            f"{where} {ratio!r} is outside {lo:g}..{hi:g}: a lattice deformation cannot "
+            "squash or inflate a model further without turning it inside out"
+        )
+    return value
+
+
+@dataclass(frozen=True)
+class Bodies:
+    """The solid bodies of the full mesh: which shell (face-connected component) belongs
+    to which body, and each body's rest volume."""
+
+    solid_of_shell: np.ndarray  #: (shells,) int
+    shell_centers: np.ndarray  #: (shells, 3) mean vertex of each shell, to match levels
+    solid_of_face: np.ndarray  #: (faces,) int, the body of each face of the full mesh
+    volumes: np.ndarray  #: (bodies,) rest volume of each body (its shells' sum)
+
+    @classmethod
+    def of(cls, mesh: TriMesh) -> Bodies:
+        labels, n = body_labels(mesh.faces)
+        depth = arrange(mesh.vertices, mesh.faces, labels, n).inside
+        solid = np.arange(n)
+        for s in range(n):  # a cavity (odd depth) belongs to its innermost container
+            d = int(depth[s].sum())
+            if d % 2 == 1:
+                parents = [p for p in np.flatnonzero(depth[s]) if int(depth[p].sum()) == d - 1]
+                solid[s] = parents[0] if parents else s
+        _, solid = np.unique(solid, return_inverse=True)
+        centers = np.array(
+            [compact(mesh.vertices, mesh.faces[labels == s])[0].mean(axis=0) for s in range(n)]
+        )
+        bodies = cls(solid, centers, solid[labels], np.zeros(0))
+        return replace(bodies, volumes=bodies.measure(mesh.vertices, mesh.faces))
+
+    def measure(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        """(bodies,) volume of each body of the full mesh with these vertex positions."""
+        vols = face_volumes(vertices, faces)
+        return np.bincount(
+            self.solid_of_face, weights=vols, minlength=self.solid_of_shell.max() + 1
+        )
+
+    @property
+    def count(self) -> int:
+        return len(self.volumes)
+
+
+class _Part:
+    """One shell of a level: its own basis and volume operator."""
+
+    def __init__(self, lattice: Lattice, vertices: np.ndarray, faces: np.ndarray) -> None:
+        self.basis: PointBasis = lattice.basis(vertices)
+        self.op = VolumeOperator(faces, len(vertices))
+
+
+class Level:
+    """What one pyramid level needs for fast evaluations, computed once; the parts that
+    only some goals use (shells, first moment) on first use."""
+
+    def __init__(self, lattice: Lattice, mesh: TriMesh, center: np.ndarray) -> None:
+        self.lattice, self.mesh, self.center = lattice, mesh, center
+        self.triangles = mesh.n_faces
+        self.basis: PointBasis = lattice.basis(mesh.vertices)
+        self.volume_op = VolumeOperator(mesh.faces, mesh.n_vertices)
+        self._last: tuple[bytes | None, float] = (None, 0.0)
+        self._parts: tuple[list[_Part], np.ndarray] | None = None
+        self._rest_bodies: np.ndarray | None = None
+        self.rest_volume = self.volume(lattice.rest_nodes)
+
+    def volume(self, nodes: np.ndarray) -> float:
+        # One-entry memo: the stopping test and the result ask the full mesh for the
+        # volume of the same nodes, and on a big mesh that is the costliest call there is.
+        key = nodes.tobytes()
+        if self._last[0] != key:
+            self._last = (key, self.volume_op(self.basis.apply(nodes), self.center))
+        return self._last[1]
+
+    def volume_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
+        v, dv_dp = self.volume_op.value_and_gradient(self.basis.apply(nodes), self.center)
+        return v, self.basis.apply_transpose(dv_dp)
+
+    def parts(self, bodies: Bodies) -> tuple[list[_Part], np.ndarray]:
+        """The level's shells and the body each belongs to (matched to the full mesh's
+        shells by order, or by nearest centre where simplification changed their number)."""
+        if self._parts is None:
+            labels, n = body_labels(self.mesh.faces)
+            shells = [compact(self.mesh.vertices, self.mesh.faces[labels == s]) for s in range(n)]
+            if n == len(bodies.solid_of_shell):
+                owner = bodies.solid_of_shell
+            else:
+                centers = np.array([v.mean(axis=0) for v, _ in shells])
+                gap = np.linalg.norm(centers[:, None] - bodies.shell_centers[None], axis=2)
+                owner = bodies.solid_of_shell[np.argmin(gap, axis=1)]
+            self._parts = ([_Part(self.lattice, v, f) for v, f in shells], owner)
+        return self._parts
+
+    def body_volumes(self, nodes: np.ndarray, bodies: Bodies) -> np.ndarray:
+        parts, owner = self.parts(bodies)
+        vols = [p.op(p.basis.apply(nodes), self.center) for p in parts]
+        return np.bincount(owner, weights=vols, minlength=bodies.count)
+
+    def rest_body_volumes(self, bodies: Bodies) -> np.ndarray:
+        """Each body's volume on this level at rest, computed once (every solve's
+        constraints on this level start from it)."""
+        if self._rest_bodies is None:
+            self._rest_bodies = self.body_volumes(self.lattice.rest_nodes, bodies)
+        return self._rest_bodies
+
+    @cached_property
+    def moment_op(self) -> MomentOperator:
+        return MomentOperator(self.mesh.faces, self.mesh.n_vertices)
+
+    @cached_property
+    def rest_centroid(self) -> np.ndarray:
+        """Centre of mass at rest, relative to ``center``."""
+        m, _ = self.moment_op.value_and_gradient(self.mesh.vertices, self.center)
+        return m / self.rest_volume
+
+    def moment_and_gradient(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """First moment about ``center`` (3,) and its gradient (3, nodes, 3)."""
+        m, dm = self.moment_op.value_and_gradient(self.basis.apply(nodes), self.center)
+        return m, np.stack([self.basis.apply_transpose(d) for d in dm])
+
+
+class Constraints:
+    """The goal's constraints on one level: ``c(X)`` (m,) and ``dc/dX`` (m, nodes, 3),
+    normalised as the module notes say.
+
+    Parameters
+    ----------
+    level : the pyramid level
+    goal : what to hold
+    bodies : the full mesh's bodies (for ``per-body``)
+    v_full : the full mesh's rest volume (the reference of every normalisation)
+    size : object size
+    extra : linear constraints that hold on every level alike (the handles,
+        :class:`isochor.core.goal.handles.HandleSystem`: ``count``, ``values(X)``, ``jacobian``)
+    """
+
+    def __init__(
+        self,
+        level: Level,
+        goal: Goal,
+        bodies: Bodies | None,
+        v_full: float,
+        size: float,
+        extra=None,
+    ) -> None:
+        self.level, self.goal, self.bodies, self.extra = level, goal, bodies, extra
+        t = goal.target_ratio
+        if goal.preserve == "per-body" and bodies is not None:
+            self.targets = t * level.rest_body_volumes(bodies)
+            self.scales = min(1.0, t) * np.abs(bodies.volumes)
+        else:
+            self.targets = np.array([t * level.rest_volume])
+            self.scales = np.array([min(1.0, t) * abs(v_full)])
+        self.centroid_scale = CENTROID_SCALE * t * abs(v_full) * size
+        self.own = len(self.targets) + (3 if goal.keep_centroid else 0)
+        self.count = self.own + (extra.count if extra is not None else 0)
+
+    def values(self, nodes: np.ndarray) -> np.ndarray:
+        lvl = self.level
+        if self.goal.preserve == "per-body" and self.bodies is not None:
+            vols = lvl.body_volumes(nodes, self.bodies)
+        else:
+            vols = np.array([lvl.volume(nodes)])
+        out = [(vols - self.targets) / self.scales]
+        if self.goal.keep_centroid:
+            m, _ = lvl.moment_and_gradient(nodes)
+            out.append((m - vols.sum() * lvl.rest_centroid) / self.centroid_scale)
+        if self.extra is not None:
+            out.append(self.extra.values(nodes))
+        return np.concatenate(out)
+
+    def values_and_jacobian(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        lvl = self.level
+        if self.goal.preserve == "per-body" and self.bodies is not None:
+            parts, owner = lvl.parts(self.bodies)
+            vols = np.zeros(self.bodies.count)
+            dvols = np.zeros((self.bodies.count, *nodes.shape))
+            for part, b in zip(parts, owner):
+                v, dp = part.op.value_and_gradient(part.basis.apply(nodes), lvl.center)
+                vols[b] += v
+                dvols[b] += part.basis.apply_transpose(dp)
+        else:
+            v, dv = lvl.volume_and_gradient(nodes)
+            vols, dvols = np.array([v]), dv[None]
+        c = [(vols - self.targets) / self.scales]
+        dc = [dvols / self.scales[:, None, None]]
+        if self.goal.keep_centroid:
+            m, dm = lvl.moment_and_gradient(nodes)
+            c0 = lvl.rest_centroid
+            c.append((m - vols.sum() * c0) / self.centroid_scale)
+            dv_total = dvols.sum(axis=0)
+            dc.append((dm - c0[:, None, None] * dv_total[None]) / self.centroid_scale)
+        if self.extra is not None:
+            c.append(self.extra.values(nodes))
+            dc.append(self.extra.jacobian)
+        return np.concatenate(c), np.concatenate(dc)

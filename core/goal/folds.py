@@ -1,0 +1,398 @@
+"""Folds of the deformation: where the FFD turns the model inside out, and a guard against it.
+
+The solver preserves the *signed* volume, so it can meet its target by turning part of the
+model inside out: there the determinant of the FFD's Jacobian ``J = dX/dx`` is zero or
+negative. This module
+
+- measures how much of a model is folded (:class:`FoldCheck` -> :class:`Folds`), at the
+  model's vertices and at points of a regular grid inside the solid (:func:`interior_points`);
+- guards against folds (:class:`FoldGuard`): a smooth penalty on ``det J`` below a margin at
+  fixed sample points, with its exact gradient with respect to the node positions.
+
+At the rest lattice the FFD is the identity, so ``det J = 1`` everywhere.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import comb
+
+import numpy as np
+
+from .. import kernels
+from ..bodies import winding_numbers
+from ..errors import IsochorError
+from ..lattice import Lattice
+from ..mesh import TriMesh
+
+#: points per block of the blocked determinant evaluation (temporaries stay in cache)
+BLOCK = 4096
+#: |winding number| above this: inside
+INSIDE = 0.5
+#: (point, node) entries per block while building the guard's basis gradients
+GUARD_BLOCK = 1 << 20
+
+
+def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) -> np.ndarray:
+    """Points of a regular grid strictly inside a closed mesh.
+
+    The grid spacing is first chosen from the volume of the mesh's bounding box so that
+    about ``count`` grid points (cell centres) fall in the box; those with ``|winding number|
+    > 0.5`` are kept. A thin model (a flat torus) fills little of its box, so while fewer
+    than ``count / 2`` are inside, the grid is refined (twice at most). Winding numbers cost
+    points x triangles: the grid never exceeds ``budget`` of them. Deterministic.
+
+    Parameters
+    ----------
+    mesh : a closed triangle mesh
+    count : about how many points inside to aim for
+    budget : most (point, triangle) pairs to spend on winding numbers
+
+    Returns
+    -------
+    (k, 3) float64, empty (0, 3) when nothing is inside (or the mesh is flat or empty)
+    """
+    empty = np.zeros((0, 3))
+    if mesh.n_faces == 0 or count < 1:
+        return empty
+    lo, hi = mesh.bounds
+    ext = hi - lo
+    box = float(np.prod(ext))
+    if not (np.isfinite(box) and box > 0):
+        return empty
+    most = min(int(count), int(budget) // mesh.n_faces)
+    if most < 1:
+        return empty
+    triangles = mesh.vertices[mesh.faces]
+    inside = empty
+    for _ in range(3):  # a thin model fills little of its box: refine until about `count`
+        grid = _grid(lo, ext, (box / most) ** (1.0 / 3.0), mesh.n_faces, budget)
+        winding = winding_numbers(grid, triangles)
+        inside = np.ascontiguousarray(grid[np.abs(winding) > INSIDE])
+        room = int(budget) // mesh.n_faces
+        if len(inside) >= count / 2 or len(grid) >= room:
+            break
+        most = min(room, int(most * min(8.0, count / max(len(inside), 1))))
+    return inside
+
+
+def _grid(lo: np.ndarray, ext: np.ndarray, spacing: float, faces: int, budget: int) -> np.ndarray:
+    """Cell centres of a regular grid over the box, about ``spacing`` apart, within the
+    winding-number budget."""
+    cells = np.maximum(1, np.rint(ext / spacing)).astype(np.int64)
+    while int(np.prod(cells)) * faces > budget:  # rounding went over the budget
+        spacing *= 1.05
+        cells = np.maximum(1, np.rint(ext / spacing)).astype(np.int64)
+    axes = [lo[c] + (np.arange(cells[c]) + 0.5) * (ext[c] / cells[c]) for c in range(3)]
+    return np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
+
+
+def _bernstein_pair(degree: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bernstein polynomials of ``degree`` >= 1 and their derivatives, point-minor.
+
+    The same values as :func:`core.lattice.bernstein` and
+    :func:`core.lattice.bernstein_derivative`, transposed to ``(degree + 1, p)``; the lower
+    degree is built from running powers and raised by one step of the recurrence.
+    """
+    s = 1.0 - t
+    low_degree = degree - 1
+    t_pow = [np.ones_like(t)]
+    s_pow = [np.ones_like(t)]
+    for _ in range(low_degree):
+        t_pow.append(t_pow[-1] * t)
+        s_pow.append(s_pow[-1] * s)
+    low = np.stack([comb(low_degree, i) * t_pow[i] * s_pow[low_degree - i] for i in range(degree)])
+    b = np.zeros((degree + 1, len(t)))
+    b[:-1] = s * low
+    b[1:] += t * low
+    db = np.zeros((degree + 1, len(t)))
+    db[1:] = low
+    db[:-1] -= low
+    db *= degree
+    return b, db
+
+
+def _parameter_bases(
+    lattice: Lattice, uvw_t: np.ndarray
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Bases ``[Bu, Bv, Bw]`` and derivatives ``[dBu, dBv, dBw]``, each ``(nodes on the axis,
+    p)``, at lattice coordinates ``uvw_t`` (3, p)."""
+    pairs = [_bernstein_pair(d - 1, uvw_t[c]) for c, d in enumerate(lattice.shape)]
+    return [b for b, _ in pairs], [db for _, db in pairs]
+
+
+def jacobian_determinants(lattice: Lattice, points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """(p,) ``det J`` of the FFD at world points: ``np.linalg.det(lattice.jacobian(points,
+    nodes))``, evaluated in factored form over blocks of points (several times faster)."""
+    uvw_t = np.ascontiguousarray(lattice.to_parameters(np.reshape(points, (-1, 3))).T)
+    return _determinants(lattice, uvw_t, nodes)
+
+
+def _determinants(lattice: Lattice, uvw_t: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """``det J`` at lattice coordinates ``uvw_t`` (3, p), blocked over points.
+
+    Per block, the three parameter derivatives ``dX/du``, ``dX/dv``, ``dX/dw`` are contracted
+    axis by axis (w by a matrix product, then v, then u), point-minor throughout; the world
+    Jacobian is ``J = Ju @ inv(axes).T``."""
+    l, m, n = lattice.shape
+    grid = np.asarray(nodes, dtype=np.float64).reshape(l, m, n, 3)
+    to_world = np.linalg.inv(lattice.axes).T
+    fast = kernels.determinants(uvw_t, grid, to_world)
+    if fast is not None:
+        return fast
+    x_t = np.ascontiguousarray(grid.transpose(0, 1, 3, 2)).reshape(l * m * 3, n)
+    p = uvw_t.shape[1]
+    out = np.empty(p)
+    for s in range(0, p, BLOCK):
+        (bu, bv, bw), (dbu, dbv, dbw) = _parameter_bases(lattice, uvw_t[:, s : s + BLOCK])
+        width = bu.shape[1]
+        y_w = (x_t @ bw).reshape(l, m, 3, width)
+        y_dw = (x_t @ dbw).reshape(l, m, 3, width)
+        z_v = (y_w * bv[None, :, None]).sum(axis=1)  # (l, 3, width)
+        z_dv = (y_w * dbv[None, :, None]).sum(axis=1)
+        z_dw = (y_dw * bv[None, :, None]).sum(axis=1)
+        d_u = (z_v * dbu[:, None]).sum(axis=0)  # (3, width): dX/du
+        d_v = (z_dv * bu[:, None]).sum(axis=0)
+        d_w = (z_dw * bu[:, None]).sum(axis=0)
+        c0, c1, c2 = (
+            to_world[0, e] * d_u + to_world[1, e] * d_v + to_world[2, e] * d_w for e in range(3)
+        )
+        out[s : s + width] = (
+            c0[0] * (c1[1] * c2[2] - c1[2] * c2[1])
+            + c0[1] * (c1[2] * c2[0] - c1[0] * c2[2])
+            + c0[2] * (c1[0] * c2[1] - c1[1] * c2[0])
+        )
+    return out
+
+
+@dataclass(frozen=True)
+class Folds:
+    """Where the FFD turns the model inside out (``det J <= 0``).
+
+    Attributes
+    ----------
+    fraction : folded share of all samples (vertices and interior points)
+    vertex_fraction : folded share of the model's vertices
+    interior_fraction : folded share of the interior points, 0.0 when there are none
+    min_det : smallest ``det J`` over the samples (``inf`` when there are none)
+    vertices : (m,) bool, read-only: which model vertices are folded
+    """
+
+    fraction: float
+    vertex_fraction: float
+    interior_fraction: float
+    min_det: float
+    vertices: np.ndarray
+
+    def __post_init__(self) -> None:
+        flags = np.array(self.vertices, dtype=bool).reshape(-1)
+        flags.flags.writeable = False
+        object.__setattr__(self, "vertices", flags)
+
+    @property
+    def folded(self) -> bool:
+        """True when any sample is folded."""
+        return self.fraction > 0
+
+
+class FoldCheck:
+    """``det J`` over a model's vertices and interior points, for one lattice.
+
+    Parameters
+    ----------
+    lattice : the FFD lattice
+    vertices : (m, 3) the model's vertices
+    interior : (k, 3) points inside the solid (:func:`interior_points`), may be empty
+    """
+
+    def __init__(self, lattice: Lattice, vertices: np.ndarray, interior: np.ndarray) -> None:
+        self.lattice = lattice
+        vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+        interior = np.asarray(interior, dtype=np.float64).reshape(-1, 3)
+        self.n_vertices, self.n_interior = len(vertices), len(interior)
+        samples = np.concatenate([vertices, interior])
+        self._uvw_t = np.ascontiguousarray(lattice.to_parameters(samples).T)
+
+    def determinants(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``det J`` at node positions ``nodes`` (nodes, 3).
+
+        Returns
+        -------
+        (m,) at the vertices, (k,) at the interior points
+        """
+        dets = _determinants(self.lattice, self._uvw_t, nodes)
+        return dets[: self.n_vertices], dets[self.n_vertices :]
+
+    def measure(self, nodes: np.ndarray) -> Folds:
+        """How much of the model the FFD with node positions ``nodes`` turns inside out."""
+        at_vertices, inside = self.determinants(nodes)
+        folded_vertices = at_vertices <= 0
+        n_folded_vertices = int(np.count_nonzero(folded_vertices))
+        n_folded_inside = int(np.count_nonzero(inside <= 0))
+        total = self.n_vertices + self.n_interior
+        every = np.concatenate([at_vertices, inside])
+        return Folds(
+            fraction=(n_folded_vertices + n_folded_inside) / total if total else 0.0,
+            vertex_fraction=n_folded_vertices / self.n_vertices if self.n_vertices else 0.0,
+            interior_fraction=n_folded_inside / self.n_interior if self.n_interior else 0.0,
+            min_det=float(every.min()) if total else float("inf"),
+            vertices=folded_vertices,
+        )
+
+
+class FoldGuard:
+    """A penalty that keeps ``det J`` above a margin at fixed sample points.
+
+    ``P(X) = weight / k * sum_p max(0, margin - det J_p(X))**3``: a cubic hinge, twice
+    continuously differentiable and zero wherever ``det J >= margin``.
+
+    The world-space gradients of every node's basis function at the k sample points are
+    precomputed: ``G[b, p, node] = dB_node(x_p) / dx_b`` (memory ``3 * k * nodes`` float64, 72 MB
+    for 3000 points and 1000 nodes). Then column b of ``J_p`` is ``G[b] @ X`` and
+    ``dP/dX[node, a] = sum_p sum_b phi'(det_p) cof_p[a, b] G[b, p, node]``, two matrix
+    products per evaluation, over the samples within the margin only: det J at every
+    sample comes from the compiled kernels when they are ready (the NumPy path takes it
+    from ``G`` too).
+
+    Parameters
+    ----------
+    lattice : the FFD lattice
+    points : (k, 3) world sample points (rest positions)
+    margin : the smallest ``det J`` that costs nothing (1 is the rest value)
+    weight : scale of the penalty, >= 0
+    """
+
+    def __init__(self, lattice: Lattice, points: np.ndarray, margin: float, weight: float) -> None:
+        if not np.isfinite(margin):
+            raise IsochorError(f"The fold margin must be a finite number, got {margin}.")
+        if not (np.isfinite(weight) and weight >= 0):
+            raise IsochorError(f"The fold weight must be finite and >= 0, got {weight}.")
+        self.lattice = lattice
+        self.margin, self.weight = float(margin), float(weight)
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        self.n_points = k = len(points)
+        nodes = lattice.n_nodes
+        inv = np.linalg.inv(lattice.axes)  # du_c / dx_b = inv[b, c]
+        uvw_t = np.ascontiguousarray(lattice.to_parameters(points).T)
+        self._g = g = np.empty((3, k, nodes))
+        step = max(1, GUARD_BLOCK // nodes)
+        for s in range(0, k, step):
+            (bu, bv, bw), (dbu, dbv, dbw) = _parameter_bases(lattice, uvw_t[:, s : s + step])
+            width = bu.shape[1]
+            d = [
+                (x[:, None, None] * y[None, :, None] * z[None, None, :]).reshape(nodes, width)
+                for x, y, z in ((dbu, bv, bw), (bu, dbv, bw), (bu, bv, dbw))
+            ]
+            for b in range(3):
+                g[b, s : s + width] = (inv[b, 0] * d[0] + inv[b, 1] * d[1] + inv[b, 2] * d[2]).T
+        #: (nodes,) the largest |grad B_node| over the samples (see :meth:`_inactive`)
+        self._reach = np.sqrt(np.einsum("bpn,bpn->pn", g, g)).max(axis=0) if k else np.zeros(0)
+        #: (3, k) the samples' lattice coordinates and inv(axes).T: det J by the kernels
+        self._uvw_t, self._to_world = uvw_t, inv.T
+        #: (nodes at the last full evaluation, its min det J - margin, its max |J|_F)
+        self._ref: tuple[np.ndarray, float, float] | None = None
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the precomputed basis gradients, in bytes."""
+        return int(self._g.nbytes)
+
+    def _columns(self, nodes: np.ndarray, rows=slice(None)) -> np.ndarray:
+        """(3, k, 3) columns of the Jacobians (at the samples ``rows``):
+        ``out[b, p, a] = J_p[a, b]``."""
+        x = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+        g = self._g[:, rows]
+        return (g.reshape(-1, g.shape[2]) @ x).reshape(3, -1, 3)
+
+    def determinants(self, nodes: np.ndarray) -> np.ndarray:
+        """(k,) ``det J`` at the sample points for node positions ``nodes`` (nodes, 3)."""
+        return self._evaluate(nodes)
+
+    def _inactive(self, nodes: np.ndarray) -> bool:
+        """Whether no sample can be within the margin at ``nodes``, proven from the last
+        full evaluation (so the penalty and its derivatives are exactly zero, unevaluated).
+
+        ``J_p`` moves by ``D_p = sum_n d_n grad B_n(p)^T`` for node moves ``d_n``, so
+        ``|D_p|_F <= e = sum_n |d_n| reach_n``. det is multilinear in the columns, each
+        column of ``J_p`` is at most ``j = max_p |J_p|_F`` long and each of ``D_p`` at most
+        ``e``: ``|det(J_p + D_p) - det J_p| <= (j + e)^3 - j^3``. When that is below the
+        slack ``min_p det J_p - margin``, every sample stays above the margin."""
+        ref = self._ref  # one tuple: another thread may replace it, never half of it
+        if ref is None or ref[1] <= 0:
+            return False
+        x0, slack, j = ref
+        e = float(np.sqrt(np.einsum("ij,ij->i", nodes - x0, nodes - x0)) @ self._reach)
+        return (j + e) ** 3 - j**3 < slack
+
+    def _evaluate(self, nodes: np.ndarray) -> np.ndarray:
+        """det J at every sample; remembers the slack and ``max |J|_F`` for
+        :meth:`_inactive`. The compiled kernels evaluate the Bernstein polynomials per
+        sample (:func:`isochor.core.kernels.determinants`); the NumPy path multiplies the
+        stored basis gradients (``3 k nodes`` numbers read each time)."""
+        x = np.array(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+        l, m, n = self.lattice.shape
+        fast = kernels.determinants(
+            self._uvw_t, x.reshape(l, m, n, 3), self._to_world, frobenius=True
+        )
+        if fast is not None:
+            dets, squares = fast
+        else:
+            c0, c1, c2 = cols = self._columns(x)
+            dets = np.einsum("pa,pa->p", c0, np.cross(c1, c2))
+            squares = np.einsum("bpa,bpa->p", cols, cols)
+        if self.n_points:
+            self._ref = (x, float(dets.min()) - self.margin, float(np.sqrt(squares.max())))
+        return dets
+
+    def _near(self, nodes: np.ndarray):
+        """``(short, active, cof)`` at the samples within the margin: how far each is below
+        it, which they are, and the cofactor columns of their J (``d det / d column b``,
+        (3, a, 3)); None where none is (or the guard is off)."""
+        if self.n_points == 0 or self.weight == 0:
+            return None
+        nodes = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+        if self._inactive(nodes):  # the usual case: provably nowhere near a fold
+            return None
+        short = np.maximum(self.margin - self._evaluate(nodes), 0.0)
+        active = np.flatnonzero(short > 0)
+        if active.size == 0:  # nowhere near a fold after all
+            return None
+        a0, a1, a2 = self._columns(nodes, active if active.size < self.n_points else slice(None))
+        cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)])
+        return short[active], active, cof
+
+    def value_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
+        """The penalty and its exact gradient with respect to the node positions.
+
+        Returns
+        -------
+        (value, (nodes, 3) gradient)
+        """
+        k = self.n_points
+        grad = np.zeros((self.lattice.n_nodes, 3))
+        near = self._near(nodes)
+        if near is None:
+            return 0.0, grad
+        short, active, cof = near
+        scale = self.weight / k
+        value = scale * float(np.sum(short**3))
+        slope = -3.0 * scale * short**2  # phi'(det) at the active points
+        w = (slope[None, :, None] * cof).reshape(-1, 3)  # (3 * a, 3)
+        g = self._g if active.size == k else self._g[:, active]
+        grad += g.reshape(w.shape[0], -1).T @ w
+        return value, grad
+
+    def gauss_newton(self, nodes: np.ndarray) -> np.ndarray:
+        """``(3 nodes, 3 nodes)``: the penalty's Hessian without the determinants' own
+        curvature, ``sum_p phi''(det_p) grad det_p grad det_p^T`` over the points within the
+        margin (positive semi-definite; zero when nowhere near a fold). For the solver's
+        preconditioner (:mod:`isochor.core.solve.precondition`)."""
+        n = 3 * self.lattice.n_nodes
+        near = self._near(nodes)
+        if near is None:
+            return np.zeros((n, n))
+        short, active, cof = near
+        # grad det_p over (node, axis): sum_b g[b, p, node] cof[b, p, axis]
+        rows = np.einsum("bpn,bpa->pna", self._g[:, active], cof).reshape(active.size, n)
+        curvature = 6.0 * self.weight / self.n_points * short  # phi''(det)
+        return rows.T @ (curvature[:, None] * rows)

@@ -1,0 +1,14 @@
+"""Model files in and out: read, repair, rewrite in place, write anew.
+
+- :mod:`.formats`   the file suffixes Isochor reads and writes (their one owner)
+- :mod:`.meshio`    read OBJ/PLY/STL/OFF/glTF into a clean closed TriMesh (through
+  :mod:`.repair`); write a mesh anew; the one PLY header parser
+- :mod:`.repair`    weld, drop degenerate triangles, check closed, repair winding, orient
+- :mod:`.roundtrip` rewrite an OBJ/PLY/STL/OFF file: positions deformed, all else kept
+- :mod:`.gltf`      read glTF/GLB; rewrite it deformed, or with a morph target
+- :mod:`.gltfanim`  a solved sequence as one GLB: a morph target per frame, weights animated
+- :mod:`.atomic`    outputs checked before any work (never an input, a device, a folder), then
+  written all or none through temporary files and renames
+
+Uses the geometry at the top of :mod:`isochor.core` only.
+"""

@@ -1,0 +1,112 @@
+"""A solved sequence as one animated glTF binary (GLB): the model at rest with one morph
+target per frame, and an animation of the morph weights (frame ``i`` at time ``i / rate``
+has weight 1 on target ``i``, linear between frames). Blender imports it as shape keys with
+their animation; any glTF viewer plays it.
+
+The mesh is the welded triangle mesh Isochor solved (positions only): a sequence of files
+in the model's own format (``####``) keeps the model's UVs, normals and vertex order.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..errors import IsochorError
+
+#: a GLB holds at most 2 GiB (its length field is 32 bits, and readers use that limit)
+MAX_GLB_BYTES = 2**31 - 1
+_FLOAT, _UINT = 5126, 5125
+_ARRAY, _ELEMENTS = 34962, 34963
+
+
+def animated_glb(
+    vertices: np.ndarray, faces: np.ndarray, frames: Sequence[np.ndarray], rate: float
+) -> bytes:
+    """The GLB of ``vertices`` (v, 3) and ``faces`` (f, 3) animated through ``frames``
+    (each (v, 3), the deformed vertices of one frame) at ``rate`` frames a second."""
+    rest = np.asarray(vertices, dtype=np.float32)
+    count = len(frames)
+    size = 12 * len(rest) * (count + 1) + 12 * len(faces) + 4 * count * (count + 1)
+    if size > MAX_GLB_BYTES:
+        raise IsochorError(
+            f"{count} frames of {len(rest)} vertices make {size / 2**30:.1f} GB, more than a "
+            "GLB holds: write a sequence of files (frame_####.obj) instead"
+        )
+    blobs: list[bytes] = []
+    views: list[dict] = []
+    accessors: list[dict] = []
+
+    def add(data, component: int, kind: str, target: int | None = None, bounds=True) -> int:
+        raw = np.ascontiguousarray(data).tobytes()
+        offset = sum(len(b) for b in blobs)
+        view = {"buffer": 0, "byteOffset": offset, "byteLength": len(raw)}
+        if target is not None:
+            view["target"] = target
+        views.append(view)
+        blobs.append(raw + b"\0" * (-len(raw) % 4))
+        acc = {
+            "bufferView": len(views) - 1,
+            "componentType": component,
+            "count": int(data.shape[0]),
+            "type": kind,
+        }
+        if bounds:  # POSITION and animation inputs must state them
+            flat = data.reshape(len(data), -1)
+            acc["min"] = [float(a) for a in flat.min(axis=0)]
+            acc["max"] = [float(a) for a in flat.max(axis=0)]
+        accessors.append(acc)
+        return len(accessors) - 1
+
+    tris = np.asarray(faces, dtype=np.uint32).reshape(-1)
+    indices = add(tris, _UINT, "SCALAR", _ELEMENTS, bounds=False)
+    position = add(rest, _FLOAT, "VEC3", _ARRAY)
+    targets = [
+        {"POSITION": add(np.asarray(f, dtype=np.float32) - rest, _FLOAT, "VEC3", _ARRAY)}
+        for f in frames
+    ]
+    times = add(np.arange(count, dtype=np.float32) / np.float32(rate), _FLOAT, "SCALAR")
+    weights = add(np.eye(count, dtype=np.float32).reshape(-1), _FLOAT, "SCALAR", bounds=False)
+    names = [f"frame {i}" for i in range(count)]
+    doc = {
+        "asset": {"version": "2.0", "generator": "Isochor"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "name": "isochor"}],
+        "meshes": [
+            {
+                "name": "isochor",
+                "primitives": [
+                    {"attributes": {"POSITION": position}, "indices": indices, "targets": targets}
+                ],
+                "weights": [0.0] * count,
+                "extras": {"targetNames": names},
+            }
+        ],
+        "animations": [
+            {
+                "name": "isochor sequence",
+                "samplers": [{"input": times, "output": weights, "interpolation": "LINEAR"}],
+                "channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
+            }
+        ],
+        "buffers": [{"byteLength": sum(len(b) for b in blobs)}],
+        "bufferViews": views,
+        "accessors": accessors,
+    }
+    text = json.dumps(doc, separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 4)
+    binary = b"".join(blobs)
+    total = 12 + 8 + len(text) + 8 + len(binary)
+    return b"".join(
+        [
+            struct.pack("<4sII", b"glTF", 2, total),
+            struct.pack("<I4s", len(text), b"JSON"),
+            text,
+            struct.pack("<I4s", len(binary), b"BIN\0"),
+            binary,
+        ]
+    )

@@ -1,0 +1,341 @@
+"""Model files: read OBJ, PLY, STL, OFF and glTF into a clean closed :class:`TriMesh`;
+write meshes.
+
+Reading (:func:`load_mesh`) goes through trimesh (polygons are triangulated by its readers;
+glTF through :mod:`isochor.core.io.gltf`, node transforms applied; a binary PLY of triangles
+straight into numpy, :func:`binary_ply`), then
+:func:`isochor.core.io.repair.clean_closed_surface` welds, checks and orients the surface.
+Any problem a file can have ends in one :class:`IsochorError` that names the file;
+trimesh's own exceptions and log lines never reach the user.
+
+Writing a mesh anew (:func:`save_mesh`, :func:`mesh_bytes`): OBJ (``%.17g``, exact round
+trip), binary PLY with float64 vertices, binary STL (float32 by the format), OFF, or glTF,
+chosen by extension, written atomically. Exporting a deformed *model* keeps its own file's
+contents: :mod:`isochor.core.export`.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import warnings
+from collections.abc import Iterable
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import IsochorError
+from ..mesh import TriMesh
+from ..validate import MAX_COORDINATE, input_file
+from ..volume import signed_volume
+from .atomic import atomic_write_bytes
+from .formats import GLTF_FORMATS, READ_FORMATS, WRITE_FORMATS, listing
+from .repair import clean_closed_surface
+
+#: the largest model file read (a safeguard: a huge or sparse file fails at once, with one
+#: line, instead of filling the memory); some 40 million triangles as binary PLY
+MAX_MODEL_BYTES = 2 * 2**30
+#: bytes looked at to tell whether a file can be of its format at all
+SNIFF_BYTES = 64 * 1024
+
+
+@dataclass(frozen=True)
+class LoadedMesh:
+    """A model read from a file and made ready for the solver.
+
+    Attributes
+    ----------
+    mesh : the closed, outward-wound, full-resolution triangle mesh
+    warnings : what was repaired, one sentence each, for the user
+    bodies : number of separate closed bodies (face-connected components)
+    path : the file it came from
+    """
+
+    mesh: TriMesh
+    warnings: list[str] = field(default_factory=list)
+    bodies: int = 1
+    path: Path | None = None
+
+    @property
+    def volume(self) -> float:
+        """Enclosed volume (positive) of all bodies together."""
+        return signed_volume(self.mesh.vertices, self.mesh.faces)
+
+
+# -- reading ----------------------------------------------------------------------------------
+def load_mesh(path: str | Path) -> LoadedMesh:
+    """Read a closed triangle surface from an OBJ, PLY, STL, OFF or glTF (.glb, .gltf) file.
+
+    Raises
+    ------
+    IsochorError
+        The file is missing, unreadable, of an unknown format, holds no triangles, or its
+        surface is not closed. The message starts with the file name.
+    """
+    path = Path(path)
+    vertices, faces = _read_raw(path)
+    try:
+        mesh, warns, bodies = clean_closed_surface(vertices, faces)
+    except IsochorError as exc:
+        raise IsochorError(f"{path.name}: {exc}") from None
+    return LoadedMesh(mesh, warns, bodies, path)
+
+
+def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices ``(m, 3) float64`` and triangles ``(f, 3) int64`` as the file holds them."""
+    kind = READ_FORMATS.get(path.suffix.lower())
+    if kind is None:
+        known = listing(READ_FORMATS)
+        raise IsochorError(
+            f"{path.name}: unknown model format {path.suffix or '(no extension)'!r}; "
+            f"Isochor reads {known}"
+        )
+    try:
+        size = input_file(path, "model", MAX_MODEL_BYTES)
+        with open(path, "rb") as fh:
+            _sniff(path, kind, fh.read(SNIFF_BYTES), size)
+            fh.seek(0)
+            data = fh.read()
+    except OSError as exc:
+        raise IsochorError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    except ValueError:  # a NUL byte in the name
+        raise IsochorError(f"{str(path)!r}: not a valid file name") from None
+    if not data or data.isspace():
+        raise IsochorError(f"{path.name}: the file is empty")
+    if kind in ("glb", "gltf"):
+        from .gltf import read_gltf
+
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            vertices, faces = read_gltf(
+                data, path.suffix.lower(), name=path.name, base_dir=path.parent
+            )
+        return _checked(path, kind, vertices, faces)
+    if kind == "ply" and (direct := binary_ply(data)) is not None:
+        return _checked(path, kind, *direct)
+    import trimesh  # heavy: imported on the first read
+
+    try:
+        with warnings.catch_warnings(), np.errstate(all="ignore"), _quiet("trimesh"):
+            warnings.simplefilter("ignore")
+            loaded = trimesh.load_mesh(io.BytesIO(data), file_type=kind, process=False)
+            if isinstance(loaded, trimesh.Scene):
+                loaded = loaded.to_mesh()
+            vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), np.float64)
+            faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), np.int64)
+    except Exception as exc:
+        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise IsochorError(
+            f"{path.name}: not a readable {kind.upper()} file (damaged or truncated?): {detail}"
+        ) from None
+    return _checked(path, kind, vertices, faces)
+
+
+def _checked(
+    path: Path, kind: str, vertices: np.ndarray, faces: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The raw arrays, refused when they cannot be a triangle mesh of real numbers."""
+    if faces.size == 0:
+        raise IsochorError(
+            f"{path.name}: no triangles found (not a valid {kind.upper()} file, or an empty mesh)"
+        )
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3:
+        raise IsochorError(f"{path.name}: not a triangle mesh")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise IsochorError(f"{path.name}: a face refers to a vertex that does not exist")
+    mask = np.zeros(len(vertices), dtype=bool)
+    mask[faces] = True
+    used = vertices[mask]
+    if not np.all(np.isfinite(used)):
+        raise IsochorError(f"{path.name}: a vertex has a coordinate that is not a number")
+    largest = float(np.abs(used).max())
+    if largest > MAX_COORDINATE:
+        raise IsochorError(
+            f"{path.name}: a vertex coordinate of {largest:.3g} is beyond "
+            f"+-{MAX_COORDINATE:g} (a damaged file?)"
+        )
+    return vertices, faces
+
+
+#: PLY scalar types as numpy's (little-endian)
+_PLY_TYPES = {
+    **dict.fromkeys(("char", "int8"), "i1"),
+    **dict.fromkeys(("uchar", "uint8"), "u1"),
+    **dict.fromkeys(("short", "int16"), "<i2"),
+    **dict.fromkeys(("ushort", "uint16"), "<u2"),
+    **dict.fromkeys(("int", "int32"), "<i4"),
+    **dict.fromkeys(("uint", "uint32"), "<u4"),
+    **dict.fromkeys(("float", "float32"), "<f4"),
+    **dict.fromkeys(("double", "float64"), "<f8"),
+}
+
+
+def binary_ply(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
+    """Vertices and triangles of a binary little-endian PLY of the common layout, read
+    straight into numpy (several times faster than trimesh on a large model): a vertex
+    element of scalar properties with x, y and z, then a face element of one list of
+    vertex indices, every face a triangle, nothing else. None for any other file (trimesh
+    reads it, or says what is wrong with it)."""
+    end = data.find(b"end_header\n", 0, SNIFF_BYTES)
+    if not data.startswith(b"ply\n") or end < 0:
+        return None
+    lines = data[:end].decode("ascii", "replace").split("\n")[1:]
+    lines = [
+        w for w in (line.split() for line in lines) if w and w[0] not in ("comment", "obj_info")
+    ]
+    try:
+        (fmt, vertex, *vprops, face, fprop) = lines
+        vtypes = {}
+        for word, kind, name in vprops:
+            if word != "property" or name in vtypes:
+                return None
+            vtypes[name] = _PLY_TYPES[kind]
+        if (
+            fmt != ["format", "binary_little_endian", "1.0"]
+            or vertex[:2] != ["element", "vertex"]
+            or face[:2] != ["element", "face"]
+            or fprop[:2] != ["property", "list"]
+            or fprop[4:] not in (["vertex_indices"], ["vertex_index"])
+            or not {"x", "y", "z"} <= vtypes.keys()
+        ):
+            return None
+        n_vertices, n_faces = int(vertex[2]), int(face[2])
+        vtype = np.dtype(list(vtypes.items()))
+        ftype = np.dtype([("n", _PLY_TYPES[fprop[2]]), ("i", _PLY_TYPES[fprop[3]], (3,))])
+    except (ValueError, KeyError, TypeError, IndexError):
+        return None
+    start = end + len(b"end_header\n")
+    if (
+        n_vertices < 0
+        or n_faces <= 0
+        or len(data) - start != n_vertices * vtype.itemsize + n_faces * ftype.itemsize
+    ):
+        return None
+    if ftype["i"].base.kind == "f":
+        return None
+    rows = np.frombuffer(data, vtype, n_vertices, start)
+    tris = np.frombuffer(data, ftype, n_faces, start + n_vertices * vtype.itemsize)
+    if np.any(tris["n"] != 3):
+        return None  # polygons (or not this layout at all): trimesh's reader
+    vertices = np.empty((n_vertices, 3))
+    for j, name in enumerate("xyz"):
+        vertices[:, j] = rows[name]
+    return vertices, tris["i"].astype(np.int64)
+
+
+@contextmanager
+def _quiet(logger: str):
+    """Silence a library's logging for a while: trimesh logs what it tolerates in a damaged
+    file (with a traceback), which is not for the user; what matters reaches them as one
+    :class:`IsochorError` or a warning of the repair."""
+    log = logging.getLogger(logger)  # its modules' loggers inherit the level
+    before = log.level
+    log.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        log.setLevel(before)
+
+
+def _sniff(path: Path, kind: str, head: bytes, size: int) -> None:
+    """Refuse at once, from its first bytes, a file that cannot be of its format (a file
+    of zeros, a renamed image), before a parser spends memory and time on all of it."""
+    if not head.strip():
+        return  # empty or blank: said by the caller
+    text_head = head.lstrip(b"\xef\xbb\xbf")  # a UTF-8 byte order mark
+    if kind == "ply":
+        if not text_head.startswith(b"ply"):
+            raise IsochorError(f"{path.name}: not a PLY file (it does not start with 'ply')")
+        if b"end_header" not in head and size > len(head):
+            raise IsochorError(f"{path.name}: not a PLY file (no end_header in its first bytes)")
+    elif kind == "stl":
+        ascii_stl = text_head.lstrip().startswith(b"solid") and b"\0" not in head
+        if not ascii_stl and len(head) >= 84:
+            count = int(np.frombuffer(head[80:84], "<u4")[0])
+            if count == 0 or 84 + 50 * count > size:
+                raise IsochorError(
+                    f"{path.name}: not a binary STL file: its header says {count} "
+                    f"triangle(s), which need {84 + 50 * count} bytes, and it has {size}"
+                )
+    elif kind == "glb":
+        if not head.startswith(b"glTF"):
+            raise IsochorError(f"{path.name}: not a GLB file (it does not start with 'glTF')")
+    elif b"\0" in head:
+        raise IsochorError(f"{path.name}: not a {kind.upper()} file (it is not text)")
+
+
+# -- writing ----------------------------------------------------------------------------------
+def save_mesh(
+    path: str | Path, mesh: TriMesh, inputs: Iterable[tuple[str | Path, str]] = ()
+) -> None:
+    """Write ``mesh`` as OBJ, PLY or STL (by the extension), atomically.
+
+    OBJ keeps every digit (``%.17g``); PLY is binary with float64 vertices; STL is binary
+    with float32 coordinates, as the format defines.
+
+    ``inputs``: ``(path, role)`` of files the mesh must not replace (the model it was
+    made from), see :func:`isochor.core.io.atomic.check_outputs`.
+
+    Raises
+    ------
+    IsochorError
+        An unsupported extension; a folder that does not exist or cannot be written; a
+        path that names one of ``inputs``, a folder or a device.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in WRITE_FORMATS:
+        known = listing(WRITE_FORMATS)
+        raise IsochorError(
+            f"{path.name}: cannot write {suffix or 'a file without extension'};"
+            f" use one of {known} (by the file extension)"
+        )
+    atomic_write_bytes(path, mesh_bytes(mesh, suffix), inputs)
+
+
+def mesh_bytes(mesh: TriMesh, suffix: str) -> bytes:
+    """The file contents of ``mesh`` in the format of ``suffix`` (see
+    :data:`isochor.core.io.formats.WRITE_FORMATS`)."""
+    v, f = mesh.vertices, mesh.faces
+    if suffix == ".obj":
+        buf = io.BytesIO()
+        buf.write(b"# written by Isochor\n")
+        np.savetxt(buf, v, fmt="v %.17g %.17g %.17g")
+        np.savetxt(buf, f + 1, fmt="f %d %d %d")
+        return buf.getvalue()
+    if suffix == ".ply":
+        header = (
+            "ply\nformat binary_little_endian 1.0\ncomment written by Isochor\n"
+            f"element vertex {len(v)}\nproperty double x\nproperty double y\n"
+            f"property double z\nelement face {len(f)}\n"
+            "property list uchar int vertex_indices\nend_header\n"
+        ).encode("ascii")
+        rows = np.empty(len(f), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+        rows["n"], rows["i"] = 3, f
+        return header + v.astype("<f8").tobytes() + rows.tobytes()
+    if suffix == ".stl":
+        tri = v[f]
+        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(normals, axis=1, keepdims=True)
+        normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+        rows = np.zeros(len(f), dtype=[("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("a", "<u2")])
+        rows["n"], rows["v"] = normals, tri
+        head = b"binary STL written by Isochor".ljust(80, b" ")
+        return head + np.uint32(len(f)).tobytes() + rows.tobytes()
+    if suffix == ".off":
+        buf = io.BytesIO()
+        buf.write(f"OFF\n{len(v)} {len(f)} 0\n".encode())
+        np.savetxt(buf, v, fmt="%.17g %.17g %.17g")
+        np.savetxt(buf, f, fmt="3 %d %d %d")
+        return buf.getvalue()
+    if suffix in GLTF_FORMATS:
+        import trimesh
+
+        tm = trimesh.Trimesh(v, f, process=False)
+        if suffix == ".glb":
+            return tm.export(file_type="glb")
+        files = tm.export(file_type="gltf", embed_buffers=True)
+        return next(data for key, data in files.items() if key.endswith(".gltf"))
+    raise IsochorError(f"cannot write {suffix!r} files")

@@ -1,0 +1,368 @@
+"""Optional compiled kernels (numba) for the hot loops of the evaluation and of the solver's
+own step, with the NumPy path as the fallback. This module is their one entry point; the
+package's other modules:
+
+- :mod:`.step`       the solver step's entry points (springs, L-BFGS recursion and memory, a
+  small preconditioner's inverse); :mod:`.pairs`, the L-BFGS memory on the NumPy path
+- :mod:`.basis`, :mod:`.bern`  the Bernstein basis products; :mod:`.volume` the volume and
+  its gradient; :mod:`.folds` det J; :mod:`.solver` the solver step; :mod:`.winding` the
+  solid-angle term both paths share
+- :mod:`.base`       numba or stand-ins, the cache folder; :mod:`.signatures` the types each
+  kernel is compiled for; :mod:`.check` their self-check; :mod:`.cache` the cache marker and
+  the one compiling child at a time; :mod:`.threads` ranges of work on a few threads
+- ``python -m isochor.core.kernels --compile`` fills the cache (:mod:`.__main__`)
+
+What they compute (the same numbers as the NumPy path, to rounding; ``tests/test_kernels``):
+
+- :func:`apply` and :func:`apply_transpose`: :meth:`core.lattice.PointBasis.apply` and its
+  transpose, evaluating the Bernstein basis per point from its lattice coordinates
+  (:mod:`core.kernels.basis`);
+- :func:`fans`, :func:`volume_gradient`, :func:`face_volume`: the volume and its gradient
+  of :class:`core.volume.VolumeOperator`, vertex by vertex (:mod:`core.kernels.volume`);
+- :func:`winding_numbers`: :func:`core.bodies.winding_numbers` (the fold guard's interior
+  samples, on the first solve of a model);
+- :func:`determinants`: det J at many points, the fold check of every result
+  (:mod:`core.kernels.folds`);
+- the solver's own work per step (:mod:`core.kernels.solver`): its entry points are in
+  :mod:`core.kernels.step`.
+
+Each returns None when the compiled kernels are not there (yet); the caller then runs its
+NumPy code. They are there once numba (the ``fast`` extra) imports and has compiled them.
+Compiling never happens in the caller: :func:`start` (called by ``load_model`` and by the
+first evaluation of ``START_SIZE`` points or faces) loads them in a background thread from
+numba's on-disk cache (:mod:`core.kernels.base`), and NumPy serves until that is done. With an
+empty cache a child interpreter compiles them first (:mod:`core.kernels.cache`). Whatever
+goes wrong (numba missing, an import or compile error, a failed self-check, a compiled call
+that raises) leaves the NumPy path in place; :func:`status` says why. A solve keeps the
+path it started on to its end (:func:`one_path`), so its result never depends on when
+the kernels arrived. ``ISOCHOR_NO_JIT=1`` switches them off; :func:`ready` waits for
+them, :func:`numpy_path` forces the NumPy path for a while (tests and benchmarks compare
+the two).
+
+Large inputs are cut into fixed ranges (``CHUNK`` points, vertices or faces), run on up to
+``ISOCHOR_JIT_THREADS`` threads (default: the usable cores, at most 4; the kernels release
+the GIL) and combined in range order, so results do not depend on the thread count.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import logging
+import os
+import sys
+import threading
+from types import SimpleNamespace
+
+import numpy as np
+
+from . import threads as _jitthreads
+from .cache import ENV_OFF
+
+#: evaluations at least this large (points, vertices or faces) start the compilation
+START_SIZE = 4096
+#: points, vertices or faces per range of work (a multiple of the kernels' block)
+CHUNK = 1 << 14
+_FACE_CHUNK = 1 << 15
+#: (point, triangle) pairs per range of winding-number work
+WINDING_PAIRS = 1 << 20
+
+#: threads per call (:mod:`core.kernels.threads`)
+set_threads = _jitthreads.set_threads
+
+_log = logging.getLogger(__name__)
+_lock = threading.Lock()
+_state = SimpleNamespace(status="idle", reason="", kernels=None, thread=None, mode="auto")
+#: ``mode``: the path this thread's running solve keeps (see :func:`one_path`)
+_local = threading.local()
+
+
+def _off_by_env() -> bool:
+    return os.environ.get(ENV_OFF, "").strip() not in ("", "0")
+
+
+def status() -> str:
+    """``ready``, ``loading``, ``idle`` (nothing started yet), ``off: <why>`` or
+    ``failed: <why>``."""
+    if _off_by_env():
+        return f"off: {ENV_OFF} is set"
+    if _state.mode == "numpy":
+        return "off: the NumPy path is forced"
+    if _state.status in ("failed", "off"):
+        return f"{_state.status}: {_state.reason}"
+    return _state.status
+
+
+def set_mode(mode: str) -> str:
+    """``"numpy"``: every evaluation takes the NumPy path; ``"auto"``: the compiled one when
+    it is ready. Returns the previous mode (tests and benchmarks compare the two)."""
+    if mode not in ("auto", "numpy"):
+        raise ValueError(f"mode must be 'auto' or 'numpy', not {mode!r}")
+    previous, _state.mode = _state.mode, mode
+    return previous
+
+
+@contextlib.contextmanager
+def numpy_path():
+    """Within: every evaluation takes the NumPy path."""
+    previous = set_mode("numpy")
+    try:
+        yield
+    finally:
+        set_mode(previous)
+
+
+def start() -> None:
+    """Start loading the kernels in a background thread, unless started or switched off."""
+    if _off_by_env() or _state.status != "idle":
+        return
+    with _lock:
+        if _state.status != "idle":
+            return
+        _state.status = "loading"
+        thread = threading.Thread(target=_load, name="isochor-jit", daemon=True)
+        _state.thread = thread
+    thread.start()
+
+
+def ready(timeout: float | None = None) -> bool:
+    """Start loading and wait up to ``timeout`` seconds (None: until done); whether the
+    compiled kernels are in use."""
+    start()
+    thread = _state.thread
+    if thread is not None and _state.status == "loading":
+        thread.join(timeout)
+    return _kernels() is not None
+
+
+def active(size: int = 0) -> bool:
+    """Whether the compiled kernels are in use; starts loading them for a large input."""
+    return _kernels(size) is not None
+
+
+def _kernels(size: int = 0) -> SimpleNamespace | None:
+    """The compiled kernels if they are to be used; starts loading them for a large input."""
+    k = _state.kernels
+    if k is not None:
+        return k if (getattr(_local, "mode", None) or _state.mode) == "auto" else None
+    if size >= START_SIZE and _state.status == "idle":
+        start()
+    return None
+
+
+def one_path(solver):
+    """Decorate a generator function (a solve): each generator it makes runs on one path,
+    the compiled one if the kernels are in use when it starts, else NumPy to its end.
+
+    The kernels load in the background, and the two paths round differently; a solve that
+    changed path when they arrived would end a little elsewhere (within its tolerance)
+    depending on when that was, so the same command could give different nodes. A solve
+    started inside another keeps the outer one's path."""
+
+    @functools.wraps(solver)
+    def run(*args, **kwargs):
+        return _on_one_path(solver(*args, **kwargs))
+
+    return run
+
+
+def _on_one_path(gen):
+    mode = getattr(_local, "mode", None) or ("auto" if active() else "numpy")
+    try:
+        while True:
+            outer, _local.mode = getattr(_local, "mode", None), mode
+            try:
+                record = next(gen)
+            except StopIteration as stop:
+                return stop.value
+            finally:
+                _local.mode = outer
+            yield record
+    finally:
+        gen.close()  # closing this closes the solve at once
+
+
+def _fail(why: str) -> None:
+    with _lock:
+        _state.kernels = None
+        _state.status, _state.reason = "failed", why
+    _log.info("isochor: compiled kernels off, NumPy path in use (%s)", why)
+
+
+def _load() -> None:
+    """The background thread: import numba, compile (or load from the cache), check."""
+    try:
+        from . import base as _jitbase
+        from . import cache as _jitcache
+        from . import check as _jitcheck
+        from .signatures import compile_all
+
+        if not _jitbase.AVAILABLE:
+            with _lock:
+                _state.status, _state.reason = "off", _jitbase.ERROR
+            return
+        marker = _jitcache.marker()
+        if marker is not None and not marker.exists():
+            _jitcache.compile_in_child(marker, __name__)
+        k = compile_all()
+        why = _jitcheck.self_check(k, sys.modules[__name__])
+        if why:
+            _fail(f"self-check: {why}")
+            return
+        with _lock:
+            _state.kernels, _state.status = k, "ready"
+    except Exception as exc:  # never let the optional path break the program
+        _fail(f"{type(exc).__name__}: {exc}")
+
+
+def _reset_after_fork() -> None:
+    if _state.status == "loading":  # the loading thread did not survive the fork
+        _state.status, _state.thread = "idle", None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_reset_after_fork)
+
+
+def _chunks(size: int, chunk: int = CHUNK) -> list[tuple[int, int]]:
+    return [(s, min(s + chunk, size)) for s in range(0, size, chunk)] or [(0, 0)]
+
+
+def _guard(fn):
+    """Run a compiled call; on any error switch the kernels off and return None."""
+
+    def wrapped(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except Exception as exc:
+            _fail(f"{fn.__name__}: {type(exc).__name__}: {exc}")
+            return None
+
+    wrapped.__name__ = wrapped.__qualname__ = fn.__name__
+    wrapped.__doc__ = fn.__doc__
+    return wrapped
+
+
+# --- the entry points ------------------------------------------------------------------------
+
+
+@_guard
+def apply(uvw: np.ndarray, nodes: np.ndarray, shape, k=None) -> np.ndarray | None:
+    """(3, p) points for the (3, p) lattice coordinates and (l m n, 3) nodes; None: no
+    kernels."""
+    k = k or _kernels(uvw.shape[1])
+    if k is None:
+        return None
+    l, m, n = shape
+    if nodes.shape != (l * m * n, 3):
+        return None  # the NumPy path says what is wrong
+    x = np.ascontiguousarray(nodes, dtype=np.float64).reshape(l, m, 3 * n)
+    out = np.empty(uvw.shape)
+    ranges = _chunks(uvw.shape[1])
+    _jitthreads.run(lambda i: k.apply_range(uvw, x, out, *ranges[i]), len(ranges))
+    return out
+
+
+@_guard
+def apply_transpose(uvw: np.ndarray, rows: np.ndarray, shape, k=None) -> np.ndarray | None:
+    """(l m n, 3) node values for (3, p) per-point rows; None: no kernels."""
+    k = k or _kernels(uvw.shape[1])
+    if k is None:
+        return None
+    l, m, n = shape
+    if rows.shape != uvw.shape:
+        return None
+    g = np.ascontiguousarray(rows, dtype=np.float64)
+    ranges = _chunks(uvw.shape[1])
+    acc = np.zeros((len(ranges), l * m * n * 3))
+    _jitthreads.run(lambda i: k.transpose_range(uvw, g, l, m, n, *ranges[i], acc[i]), len(ranges))
+    return acc.sum(axis=0).reshape(l * m * n, 3) if len(ranges) > 1 else acc[0].reshape(-1, 3)
+
+
+@_guard
+def fans(faces: np.ndarray, n_vertices: int, k=None):
+    """The vertex fans (ptr, seq) of :mod:`core.kernels.volume` for a face list; None: no
+    kernels (or a mesh too large for int32 indices)."""
+    k = k or _kernels(len(faces))
+    if k is None or max(int(n_vertices), 3 * len(faces)) >= 2**31 - 1:
+        return None
+    return k.build_fans(np.ascontiguousarray(faces, dtype=np.int64), int(n_vertices))
+
+
+@_guard
+def volume_gradient(fan, rows: np.ndarray, center, k=None):
+    """(volume, (3, m) gradient) for (3, m) C-ordered vertex rows; None: no kernels."""
+    k = k or _kernels(rows.shape[1])
+    if k is None or fan is None:
+        return None
+    ptr, seq = fan
+    if rows.shape != (3, len(ptr) - 1):
+        return None
+    c = np.zeros(3) if center is None else np.asarray(center, dtype=np.float64).reshape(3)
+    grad = np.empty(rows.shape)
+    ranges = _chunks(rows.shape[1])
+    part = np.zeros(len(ranges))
+
+    def task(i):
+        part[i] = k.fan_gradient_range(rows, c[0], c[1], c[2], ptr, seq, grad, *ranges[i])
+
+    _jitthreads.run(task, len(ranges))
+    return float(part.sum()) / 3.0, grad
+
+
+@_guard
+def face_volume(corners: np.ndarray, rows: np.ndarray, center, k=None) -> float | None:
+    """The signed volume of the faces (3, f) (int64 rows, every index checked to lie in
+    0..m by the caller) of (3, m) vertex rows; None: no kernels."""
+    k = k or _kernels(corners.shape[1])
+    if k is None:
+        return None
+    c = np.zeros(3) if center is None else np.asarray(center, dtype=np.float64).reshape(3)
+    f0, f1, f2 = corners
+    ranges = _chunks(corners.shape[1], _FACE_CHUNK)
+    part = np.zeros(len(ranges))
+
+    def task(i):
+        part[i] = k.face_volume_range(rows, c[0], c[1], c[2], f0, f1, f2, *ranges[i])
+
+    _jitthreads.run(task, len(ranges))
+    return float(part.sum()) / 6.0
+
+
+@_guard
+def winding_numbers(points: np.ndarray, corners: np.ndarray, k=None) -> np.ndarray | None:
+    """(p,) winding numbers of the (3, p) points over the triangles ``corners`` (3, 3, t);
+    None: no kernels."""
+    k = k or _kernels(points.shape[1] * corners.shape[2])
+    if k is None:
+        return None
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    tri = np.ascontiguousarray(corners, dtype=np.float64)
+    out = np.empty(pts.shape[1])
+    ranges = _chunks(pts.shape[1], max(1, WINDING_PAIRS // max(tri.shape[2], 1)))
+    _jitthreads.run(lambda i: k.winding_range(pts, tri, out, *ranges[i]), len(ranges))
+    return out
+
+
+@_guard
+def determinants(
+    uvw: np.ndarray, grid: np.ndarray, to_world: np.ndarray, k=None, frobenius: bool = False
+):
+    """(p,) det J at the (3, p) lattice coordinates for the (l, m, n, 3) nodes ``grid``
+    (``to_world``: ``inv(axes).T``), with ``frobenius`` also (p,) ``|J|_F^2``; None: no
+    kernels."""
+    k = k or _kernels(uvw.shape[1])
+    if k is None:
+        return None
+    uvw = np.ascontiguousarray(uvw, dtype=np.float64)
+    x = np.ascontiguousarray(grid, dtype=np.float64)
+    t = np.ascontiguousarray(to_world, dtype=np.float64)
+    out = np.empty(uvw.shape[1])
+    norms = np.empty(uvw.shape[1] if frobenius else 0)
+    ranges = _chunks(uvw.shape[1])
+
+    def task(i):
+        k.determinant_range(uvw, x, t, out, norms, *ranges[i])
+
+    _jitthreads.run(task, len(ranges))
+    return (out, norms) if frobenius else out

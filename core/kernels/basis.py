@@ -1,0 +1,342 @@
+"""Compiled FFD basis kernels: :meth:`core.lattice.PointBasis.apply` and its transpose.
+
+Nothing is stored per point but its lattice coordinates ``uvw`` (3, p): each block of
+``BLOCK`` points evaluates its Bernstein rows (:mod:`core.kernels.bern`) in scratch that stays
+in the L1 cache and contracts them with the nodes at once, so one evaluation reads 24
+bytes per point instead of the factored basis's ``8 (l m + n)``.
+
+The loops run over the points of a block (they vectorise); the node axes are loops around
+them. The innermost node axis ``k`` (n nodes) is summed in registers: all n layers at once
+up to 5, else in groups of 2 or 3 whose last one adds straight into the result, so each
+point costs about ``3 l m n`` multiply-adds and few loads and stores:
+
+- apply: ``out_c = sum_ij Bu_i Bv_j (sum_k Bw_k X_ijkc)``;
+- transpose: ``G_ijkc += sum_q Bu_i Bv_j Bw_k g_c`` over the block's points, summed with
+  reassociation (several partial sums, so the loop vectorises), into an accumulator of
+  the caller's, one per range of points (:mod:`core.kernels` adds them in a fixed order, so
+  the result does not depend on the number of threads).
+
+The kernels release the GIL; :mod:`core.kernels` runs them on ranges of points, one thread
+each. Compiled on first use by :mod:`core.kernels` in a background thread.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import INLINE, INLINE_REDUCE, KERNEL, REDUCE, njit
+from .bern import _bernstein
+
+#: points per block: the Bernstein rows and accumulators of a block (at most 45 rows of
+#: 2 KB) stay in the L1 cache
+BLOCK = 256
+
+
+@njit(**INLINE)
+def _z_group(z0, z1, z2, bw, k, g, x, w, first):
+    """``z_c (=, or += unless first) sum_t bw[k + t] * x[3 (k + t) + c]`` over the g
+    (2 or 3) layers from k."""
+    c = 3 * k
+    if g == 2:
+        b0, b1 = bw[k], bw[k + 1]
+        x00, x01, x02 = x[c], x[c + 1], x[c + 2]
+        x10, x11, x12 = x[c + 3], x[c + 4], x[c + 5]
+        if first:
+            for q in range(w):
+                u0, u1 = b0[q], b1[q]
+                z0[q] = u0 * x00 + u1 * x10
+                z1[q] = u0 * x01 + u1 * x11
+                z2[q] = u0 * x02 + u1 * x12
+        else:
+            for q in range(w):
+                u0, u1 = b0[q], b1[q]
+                z0[q] += u0 * x00 + u1 * x10
+                z1[q] += u0 * x01 + u1 * x11
+                z2[q] += u0 * x02 + u1 * x12
+    else:
+        b0, b1, b2 = bw[k], bw[k + 1], bw[k + 2]
+        x00, x01, x02 = x[c], x[c + 1], x[c + 2]
+        x10, x11, x12 = x[c + 3], x[c + 4], x[c + 5]
+        x20, x21, x22 = x[c + 6], x[c + 7], x[c + 8]
+        if first:
+            for q in range(w):
+                u0, u1, u2 = b0[q], b1[q], b2[q]
+                z0[q] = u0 * x00 + u1 * x10 + u2 * x20
+                z1[q] = u0 * x01 + u1 * x11 + u2 * x21
+                z2[q] = u0 * x02 + u1 * x12 + u2 * x22
+        else:
+            for q in range(w):
+                u0, u1, u2 = b0[q], b1[q], b2[q]
+                z0[q] += u0 * x00 + u1 * x10 + u2 * x20
+                z1[q] += u0 * x01 + u1 * x11 + u2 * x21
+                z2[q] += u0 * x02 + u1 * x12 + u2 * x22
+
+
+@njit(**INLINE)
+def _final_group(o0, o1, o2, a_i, a_j, z0, z1, z2, bw, k, g, x, w, with_z):
+    """``o_c += a_i a_j (z_c + sum_t bw[k + t] * x[3 (k + t) + c])`` over the last g
+    layers from k: 2 or 3 after other groups (with z), 2 to 5 when they are all of them
+    (without z)."""
+    c = 3 * k
+    if g == 2:
+        b0, b1 = bw[k], bw[k + 1]
+        x00, x01, x02 = x[c], x[c + 1], x[c + 2]
+        x10, x11, x12 = x[c + 3], x[c + 4], x[c + 5]
+        if with_z:
+            for q in range(w):
+                u0, u1 = b0[q], b1[q]
+                a = a_i[q] * a_j[q]
+                o0[q] += a * (z0[q] + u0 * x00 + u1 * x10)
+                o1[q] += a * (z1[q] + u0 * x01 + u1 * x11)
+                o2[q] += a * (z2[q] + u0 * x02 + u1 * x12)
+        else:
+            for q in range(w):
+                u0, u1 = b0[q], b1[q]
+                a = a_i[q] * a_j[q]
+                o0[q] += a * (u0 * x00 + u1 * x10)
+                o1[q] += a * (u0 * x01 + u1 * x11)
+                o2[q] += a * (u0 * x02 + u1 * x12)
+    elif g == 3:
+        b0, b1, b2 = bw[k], bw[k + 1], bw[k + 2]
+        x00, x01, x02 = x[c], x[c + 1], x[c + 2]
+        x10, x11, x12 = x[c + 3], x[c + 4], x[c + 5]
+        x20, x21, x22 = x[c + 6], x[c + 7], x[c + 8]
+        if with_z:
+            for q in range(w):
+                u0, u1, u2 = b0[q], b1[q], b2[q]
+                a = a_i[q] * a_j[q]
+                o0[q] += a * (z0[q] + u0 * x00 + u1 * x10 + u2 * x20)
+                o1[q] += a * (z1[q] + u0 * x01 + u1 * x11 + u2 * x21)
+                o2[q] += a * (z2[q] + u0 * x02 + u1 * x12 + u2 * x22)
+        else:
+            for q in range(w):
+                u0, u1, u2 = b0[q], b1[q], b2[q]
+                a = a_i[q] * a_j[q]
+                o0[q] += a * (u0 * x00 + u1 * x10 + u2 * x20)
+                o1[q] += a * (u0 * x01 + u1 * x11 + u2 * x21)
+                o2[q] += a * (u0 * x02 + u1 * x12 + u2 * x22)
+    elif g == 4:
+        b0, b1, b2 = bw[k], bw[k + 1], bw[k + 2]
+        b3 = bw[k + 3]
+        x00, x01, x02 = x[c], x[c + 1], x[c + 2]
+        x10, x11, x12 = x[c + 3], x[c + 4], x[c + 5]
+        x20, x21, x22 = x[c + 6], x[c + 7], x[c + 8]
+        x30, x31, x32 = x[c + 9], x[c + 10], x[c + 11]
+        for q in range(w):
+            u0, u1, u2, u3 = b0[q], b1[q], b2[q], b3[q]
+            a = a_i[q] * a_j[q]
+            o0[q] += a * (u0 * x00 + u1 * x10 + u2 * x20 + u3 * x30)
+            o1[q] += a * (u0 * x01 + u1 * x11 + u2 * x21 + u3 * x31)
+            o2[q] += a * (u0 * x02 + u1 * x12 + u2 * x22 + u3 * x32)
+    else:
+        b0, b1, b2 = bw[k], bw[k + 1], bw[k + 2]
+        b3, b4 = bw[k + 3], bw[k + 4]
+        x00, x01, x02 = x[c], x[c + 1], x[c + 2]
+        x10, x11, x12 = x[c + 3], x[c + 4], x[c + 5]
+        x20, x21, x22 = x[c + 6], x[c + 7], x[c + 8]
+        x30, x31, x32 = x[c + 9], x[c + 10], x[c + 11]
+        x40, x41, x42 = x[c + 12], x[c + 13], x[c + 14]
+        for q in range(w):
+            u0, u1, u2, u3, u4 = b0[q], b1[q], b2[q], b3[q], b4[q]
+            a = a_i[q] * a_j[q]
+            o0[q] += a * (u0 * x00 + u1 * x10 + u2 * x20 + u3 * x30 + u4 * x40)
+            o1[q] += a * (u0 * x01 + u1 * x11 + u2 * x21 + u3 * x31 + u4 * x41)
+            o2[q] += a * (u0 * x02 + u1 * x12 + u2 * x22 + u3 * x32 + u4 * x42)
+
+
+@njit(**INLINE_REDUCE)
+def _r_group(acc, at, bw, k, g, a_i, a_j, g0, g1, g2, w):
+    """``acc[at + 3 (k + t) + c] += sum_q a_i a_j g_c bw[k + t]`` for the g (2 to 5)
+    layers from k."""
+    c = at + 3 * k
+    if g == 2:
+        b0, b1 = bw[k], bw[k + 1]
+        t00, t01, t02 = 0.0, 0.0, 0.0
+        t10, t11, t12 = 0.0, 0.0, 0.0
+        for q in range(w):
+            a = a_i[q] * a_j[q]
+            y0, y1, y2 = a * g0[q], a * g1[q], a * g2[q]
+            u0, u1 = b0[q], b1[q]
+            t00 += u0 * y0
+            t01 += u0 * y1
+            t02 += u0 * y2
+            t10 += u1 * y0
+            t11 += u1 * y1
+            t12 += u1 * y2
+        acc[c] += t00
+        acc[c + 1] += t01
+        acc[c + 2] += t02
+        acc[c + 3] += t10
+        acc[c + 4] += t11
+        acc[c + 5] += t12
+    elif g == 3:
+        b0, b1, b2 = bw[k], bw[k + 1], bw[k + 2]
+        t00, t01, t02 = 0.0, 0.0, 0.0
+        t10, t11, t12 = 0.0, 0.0, 0.0
+        t20, t21, t22 = 0.0, 0.0, 0.0
+        for q in range(w):
+            a = a_i[q] * a_j[q]
+            y0, y1, y2 = a * g0[q], a * g1[q], a * g2[q]
+            u0, u1, u2 = b0[q], b1[q], b2[q]
+            t00 += u0 * y0
+            t01 += u0 * y1
+            t02 += u0 * y2
+            t10 += u1 * y0
+            t11 += u1 * y1
+            t12 += u1 * y2
+            t20 += u2 * y0
+            t21 += u2 * y1
+            t22 += u2 * y2
+        acc[c] += t00
+        acc[c + 1] += t01
+        acc[c + 2] += t02
+        acc[c + 3] += t10
+        acc[c + 4] += t11
+        acc[c + 5] += t12
+        acc[c + 6] += t20
+        acc[c + 7] += t21
+        acc[c + 8] += t22
+    elif g == 4:
+        b0, b1, b2 = bw[k], bw[k + 1], bw[k + 2]
+        b3 = bw[k + 3]
+        t00, t01, t02 = 0.0, 0.0, 0.0
+        t10, t11, t12 = 0.0, 0.0, 0.0
+        t20, t21, t22 = 0.0, 0.0, 0.0
+        t30, t31, t32 = 0.0, 0.0, 0.0
+        for q in range(w):
+            a = a_i[q] * a_j[q]
+            y0, y1, y2 = a * g0[q], a * g1[q], a * g2[q]
+            u0, u1, u2, u3 = b0[q], b1[q], b2[q], b3[q]
+            t00 += u0 * y0
+            t01 += u0 * y1
+            t02 += u0 * y2
+            t10 += u1 * y0
+            t11 += u1 * y1
+            t12 += u1 * y2
+            t20 += u2 * y0
+            t21 += u2 * y1
+            t22 += u2 * y2
+            t30 += u3 * y0
+            t31 += u3 * y1
+            t32 += u3 * y2
+        acc[c] += t00
+        acc[c + 1] += t01
+        acc[c + 2] += t02
+        acc[c + 3] += t10
+        acc[c + 4] += t11
+        acc[c + 5] += t12
+        acc[c + 6] += t20
+        acc[c + 7] += t21
+        acc[c + 8] += t22
+        acc[c + 9] += t30
+        acc[c + 10] += t31
+        acc[c + 11] += t32
+    else:
+        b0, b1, b2 = bw[k], bw[k + 1], bw[k + 2]
+        b3, b4 = bw[k + 3], bw[k + 4]
+        t00, t01, t02 = 0.0, 0.0, 0.0
+        t10, t11, t12 = 0.0, 0.0, 0.0
+        t20, t21, t22 = 0.0, 0.0, 0.0
+        t30, t31, t32 = 0.0, 0.0, 0.0
+        t40, t41, t42 = 0.0, 0.0, 0.0
+        for q in range(w):
+            a = a_i[q] * a_j[q]
+            y0, y1, y2 = a * g0[q], a * g1[q], a * g2[q]
+            u0, u1, u2, u3, u4 = b0[q], b1[q], b2[q], b3[q], b4[q]
+            t00 += u0 * y0
+            t01 += u0 * y1
+            t02 += u0 * y2
+            t10 += u1 * y0
+            t11 += u1 * y1
+            t12 += u1 * y2
+            t20 += u2 * y0
+            t21 += u2 * y1
+            t22 += u2 * y2
+            t30 += u3 * y0
+            t31 += u3 * y1
+            t32 += u3 * y2
+            t40 += u4 * y0
+            t41 += u4 * y1
+            t42 += u4 * y2
+        acc[c] += t00
+        acc[c + 1] += t01
+        acc[c + 2] += t02
+        acc[c + 3] += t10
+        acc[c + 4] += t11
+        acc[c + 5] += t12
+        acc[c + 6] += t20
+        acc[c + 7] += t21
+        acc[c + 8] += t22
+        acc[c + 9] += t30
+        acc[c + 10] += t31
+        acc[c + 11] += t32
+        acc[c + 12] += t40
+        acc[c + 13] += t41
+        acc[c + 14] += t42
+
+
+@njit(**KERNEL)
+def apply_range(uvw, x, out, start, stop):
+    """``out[:, start:stop]``: the deformed points ``start..stop`` (rows x, y, z).
+
+    uvw : (3, p) lattice coordinates; x : (l, m, 3 n) nodes, ``x[i, j, 3 k + c]``.
+    """
+    l, m, n3 = x.shape
+    n = n3 // 3
+    ng = (n + 2) // 3
+    bu = np.empty((l, BLOCK))
+    bv = np.empty((m, BLOCK))
+    bw = np.empty((n, BLOCK))
+    z0, z1, z2 = np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK)
+    o0, o1, o2 = np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK)
+    for s in range(start, stop, BLOCK):
+        w = min(BLOCK, stop - s)
+        _bernstein(uvw[0, s : s + w], w, l - 1, bu)
+        _bernstein(uvw[1, s : s + w], w, m - 1, bv)
+        _bernstein(uvw[2, s : s + w], w, n - 1, bw)
+        for q in range(w):
+            o0[q] = 0.0
+            o1[q] = 0.0
+            o2[q] = 0.0
+        for i in range(l):
+            for j in range(m):
+                xij = x[i, j]
+                k = 0
+                if n > 5:  # groups of 2 or 3 layers, the last one added to the result
+                    for gi in range(ng - 1):
+                        g = (n - k) // (ng - gi)
+                        _z_group(z0, z1, z2, bw, k, g, xij, w, gi == 0)
+                        k += g
+                _final_group(o0, o1, o2, bu[i], bv[j], z0, z1, z2, bw, k, n - k, xij, w, n > 5)
+        r0, r1, r2 = out[0, s : s + w], out[1, s : s + w], out[2, s : s + w]
+        for q in range(w):
+            r0[q] = o0[q]
+            r1[q] = o1[q]
+            r2[q] = o2[q]
+
+
+@njit(**REDUCE)
+def transpose_range(uvw, g, l, m, n, start, stop, acc):
+    """``acc[((i m + j) n + k) 3 + c] += sum_q B_ijk(q) g[c, q]`` over the points
+    ``start..stop``; uvw and g are (3, p)."""
+    ng = (n + 2) // 3
+    bu = np.empty((l, BLOCK))
+    bv = np.empty((m, BLOCK))
+    bw = np.empty((n, BLOCK))
+    for s in range(start, stop, BLOCK):
+        w = min(BLOCK, stop - s)
+        _bernstein(uvw[0, s : s + w], w, l - 1, bu)
+        _bernstein(uvw[1, s : s + w], w, m - 1, bv)
+        _bernstein(uvw[2, s : s + w], w, n - 1, bw)
+        g0, g1, g2 = g[0, s : s + w], g[1, s : s + w], g[2, s : s + w]
+        for i in range(l):
+            for j in range(m):
+                at = (i * m + j) * n * 3
+                if n <= 5:
+                    _r_group(acc, at, bw, 0, n, bu[i], bv[j], g0, g1, g2, w)
+                    continue
+                k = 0
+                for gi in range(ng):  # groups of 2 or 3 layers
+                    size = (n - k) // (ng - gi)
+                    _r_group(acc, at, bw, k, size, bu[i], bv[j], g0, g1, g2, w)
+                    k += size

@@ -1,0 +1,354 @@
+"""The scenario document: everything needed to reproduce a deformation, as one JSON file.
+
+Version 1::
+
+    {
+      "format": "isochor-scenario",
+      "version": 1,
+      "model": {"path": "cow.obj"}            or {"builtin": "torus", ...shape parameters},
+      "lattice": {"nodes": [5, 2, 2], "padding": 0.05}
+                 or {"nodes": [...], "frame": {"origin": [x, y, z], "axes": [[..], [..], [..]]}},
+      "moves": [{"node": [0, 0, 0], "by": [0.0, 1.5, 0.0]},
+                {"node": [4, 1, 1], "to": [5.2, 3.1, 1.0]}],
+      "pins": [[2, 0, 0]],
+      "target_volume_ratio": 1.0,
+      "tolerance": {"volume": 0.0005, "nodes": 0.001}
+    }
+
+Version 3 adds direct manipulation and symmetric editing::
+
+      "handles": [{"at": [x, y, z], "to": [x, y, z]}],   a point of the model at rest (at)
+                                       that must land at ``to`` (:mod:`isochor.core.goal.handles`)
+      "symmetry": "x"                  or "y", "z", "none" (the default): the edit and the
+                                       result are mirror images across the lattice's
+                                       mid-plane (:mod:`isochor.core.goal.symmetry`)
+      "poses": [{"frame": 12, "moves": [...], "pins": [...], "handles": [...],
+                 "target_volume_ratio": 0.9}],   keyframed edits (scenario.poses)
+      "timeline": {"start": 0, "end": 24, "rate": 24, "interpolation": "smooth"}
+
+Version 2 adds what a solve holds besides the volume (:class:`isochor.core.goal.constraints.Goal`);
+a file that uses none of it is still written as version 1, and version 1 files read as
+before::
+
+      "pins": [[2, 0, 0], {"node": [0, 1, 1], "axes": "z"}],   a pin on some axes only
+      "preserve": "per-body",          or "total" (the default): each body keeps its volume
+      "keep_centroid": true,           keep the solid's centre of mass (default false)
+      "anchor": "none",                or "far-side" (the default): hold the lattice face
+                                       away from the edit while nothing else holds it
+      "fold_guard": false              (default true) penalise folding the model
+
+A moved node is fixed at its new place, a pinned node where it rests; all others are free.
+Relative model paths are relative to the scenario file. Unknown keys, wrong types,
+out-of-range nodes and unsupported versions raise :class:`IsochorError` naming the field.
+
+This module is the document only: reading, checking and writing it. Turning a scenario
+into something to solve (loading the model, fitting the lattice) is
+:mod:`isochor.core.scenario.problem`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from ..defaults import LATTICE_NODES, PADDING, TOL_NODES, TOL_VOLUME
+from ..errors import IsochorError
+from ..goal.constraints import ANCHORS, PRESERVE, SYMMETRIES, Goal, check_ratio
+from ..goal.handles import Handle
+from ..io.atomic import atomic_write_text
+from ..io.formats import is_model
+from ..lattice import MAX_NODES, MIN_NODES
+from ..validate import (
+    check_keys,
+    flag,
+    input_file,
+    int_triple,
+    number,
+    parse_constant,
+    parse_int,
+    show,
+    vec3,
+    word,
+)
+from .edits import Edit, Move
+from .poses import Timeline
+
+FORMAT = "isochor-scenario"
+VERSION = 3
+VERSIONS = (1, 2, 3)
+#: the keys version 2 added, with their defaults
+GOAL_DEFAULTS = {
+    "preserve": "total",
+    "keep_centroid": False,
+    "anchor": "far-side",
+    "fold_guard": True,
+}
+#: the keys version 3 added
+V3_KEYS = ("handles", "symmetry", "poses", "timeline")
+
+#: a scenario is a few kilobytes; anything larger than this is not one
+MAX_SCENARIO_BYTES = 16 * 2**20
+#: the tolerances: the range the solver is meant for (the volume ratio's is
+#: :data:`isochor.core.goal.constraints.RATIO_RANGE`)
+TOLERANCE_RANGE = (1e-12, 0.5)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    model: dict[str, Any]
+    lattice_nodes: tuple[int, int, int] = LATTICE_NODES
+    padding: float = PADDING
+    frame: tuple[tuple[float, ...], tuple[tuple[float, ...], ...]] | None = None
+    moves: tuple[Move, ...] = ()
+    pins: tuple[tuple[int, int, int], ...] = ()  #: pinned on all three axes
+    #: pinned on some axes only: (node, axes) with axes a non-empty part of "xyz"
+    axis_pins: tuple[tuple[tuple[int, int, int], str], ...] = ()
+    target_volume_ratio: float = 1.0
+    tol_volume: float = TOL_VOLUME
+    tol_nodes: float = TOL_NODES
+    preserve: str = "total"
+    keep_centroid: bool = False
+    anchor: str = "far-side"
+    fold_guard: bool = True
+    handles: tuple[Handle, ...] = ()
+    symmetry: str = "none"
+    #: keyframed poses and the frames to solve (:mod:`isochor.core.scenario.poses`), or None
+    timeline: Timeline | None = None
+    base_dir: Path | None = field(default=None, compare=False)
+    #: the file it was read from, for messages (None when built in memory)
+    source: Path | None = field(default=None, compare=False)
+
+    # -- JSON ---------------------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, doc: Any, base_dir: str | Path | None = None) -> Scenario:
+        check_keys(
+            doc,
+            "scenario",
+            {
+                "format",
+                "version",
+                "model",
+                "lattice",
+                "moves",
+                "pins",
+                "target_volume_ratio",
+                "tolerance",
+                *GOAL_DEFAULTS,
+                *V3_KEYS,
+            },
+            {"model"},
+        )
+        if doc.get("format", FORMAT) != FORMAT:
+            raise IsochorError(f"format: expected {FORMAT!r}, got {doc.get('format')!r}")
+        version = doc.get("version", VERSION)
+        if version not in VERSIONS or isinstance(version, bool):
+            raise IsochorError(
+                f"version: this Isochor reads versions 1 to {VERSION}, got {show(version)}"
+            )
+        for newer, keys in ((3, set(V3_KEYS)), (2, set(GOAL_DEFAULTS))):
+            if version < newer and set(doc) & keys:
+                raise IsochorError(
+                    f"{sorted(set(doc) & keys)[0]}: a version {newer} key in a version "
+                    f'{version} scenario; set "version": {newer}'
+                )
+        model = doc["model"]
+        check_keys(model, "model", None, set())
+        if ("path" in model) == ("builtin" in model):
+            raise IsochorError("model: give exactly one of 'path' or 'builtin'")
+        if "path" in model:
+            check_keys(model, "model", {"path"}, {"path"})
+            if not isinstance(model["path"], str) or not model["path"]:
+                raise IsochorError("model.path: must be a non-empty string")
+            if "\0" in model["path"]:
+                raise IsochorError("model.path: not a valid file name (it holds a NUL byte)")
+        elif not isinstance(model["builtin"], str):
+            raise IsochorError("model.builtin: must be a string")
+        lat = doc.get("lattice", {})
+        check_keys(lat, "lattice", {"nodes", "padding", "frame"}, set())
+        shape = int_triple(lat.get("nodes", list(LATTICE_NODES)), "lattice.nodes")
+        if not all(MIN_NODES <= s <= MAX_NODES for s in shape):
+            raise IsochorError(f"lattice.nodes: each axis needs {MIN_NODES} to {MAX_NODES} nodes")
+        padding = number(lat.get("padding", PADDING), "lattice.padding")
+        if not 0 < padding <= 10:
+            raise IsochorError(
+                "lattice.padding: must be more than 0 and at most 10 (a fraction of the extent)"
+            )
+        frame = None
+        if "frame" in lat:
+            fr = lat["frame"]
+            check_keys(fr, "lattice.frame", {"origin", "axes"}, {"origin", "axes"})
+            axes = fr["axes"]
+            if not isinstance(axes, list) or len(axes) != 3:
+                raise IsochorError("lattice.frame.axes: must be three [x, y, z] edge vectors")
+            frame = (
+                vec3(fr["origin"], "lattice.frame.origin"),
+                tuple(vec3(a, f"lattice.frame.axes[{n}]") for n, a in enumerate(axes)),
+            )
+        edit = Edit.from_json(doc, shape, version)
+        ratio = number(doc.get("target_volume_ratio", 1.0), "target_volume_ratio")
+        ratio = check_ratio(ratio, "target_volume_ratio")
+        preserve = word(doc.get("preserve", "total"), "preserve", PRESERVE)
+        anchor = word(doc.get("anchor", "far-side"), "anchor", ANCHORS)
+        keep_centroid = flag(doc.get("keep_centroid", False), "keep_centroid")
+        fold_guard = flag(doc.get("fold_guard", True), "fold_guard")
+        symmetry = word(doc.get("symmetry", "none"), "symmetry", SYMMETRIES)
+        timeline = Timeline.from_json(doc.get("poses", []), doc.get("timeline"), shape, version)
+        tol = doc.get("tolerance", {})
+        check_keys(tol, "tolerance", {"volume", "nodes"}, set())
+        tv = number(tol.get("volume", TOL_VOLUME), "tolerance.volume", TOLERANCE_RANGE)
+        tn = number(tol.get("nodes", TOL_NODES), "tolerance.nodes", TOLERANCE_RANGE)
+        return cls(
+            dict(model),
+            shape,
+            padding,
+            frame,
+            edit.moves,
+            edit.pins,
+            edit.axis_pins,
+            ratio,
+            tv,
+            tn,
+            preserve,
+            keep_centroid,
+            anchor,
+            fold_guard,
+            edit.handles,
+            symmetry,
+            timeline,
+            Path(base_dir) if base_dir is not None else None,
+        )
+
+    @property
+    def goal(self) -> Goal:
+        """What the solve must hold."""
+        return Goal(
+            self.target_volume_ratio,
+            self.preserve,
+            self.keep_centroid,
+            self.anchor,
+            self.fold_guard,
+            self.symmetry,
+        )
+
+    @property
+    def edit(self) -> Edit:
+        """The moves, pins and handles."""
+        return Edit(self.moves, self.pins, self.axis_pins, self.handles)
+
+    @property
+    def version(self) -> int:
+        """The oldest version that can hold this scenario: 3 with handles or symmetry, 2 when
+        a version 2 key differs from its default (or an axis pin is used), else 1."""
+        if self.handles or self.symmetry != "none" or self.timeline is not None:
+            return 3
+        changed = any(getattr(self, k) != v for k, v in GOAL_DEFAULTS.items())
+        return 2 if changed or self.axis_pins else 1
+
+    def to_dict(self) -> dict[str, Any]:
+        lattice: dict[str, Any] = {"nodes": list(self.lattice_nodes)}
+        if self.frame is None:
+            lattice["padding"] = self.padding
+        else:
+            lattice["frame"] = {
+                "origin": list(self.frame[0]),
+                "axes": [list(a) for a in self.frame[1]],
+            }
+        doc = {
+            "format": FORMAT,
+            "version": self.version,
+            "model": dict(self.model),
+            "lattice": lattice,
+            **self.edit.to_json(),
+            "target_volume_ratio": self.target_volume_ratio,
+            "tolerance": {"volume": self.tol_volume, "nodes": self.tol_nodes},
+        }
+        if self.version > 1:
+            doc.update({k: getattr(self, k) for k in GOAL_DEFAULTS})
+        if self.version > 2:
+            doc["symmetry"] = self.symmetry
+        if self.timeline is not None:
+            doc["poses"], doc["timeline"] = self.timeline.to_json()
+        return doc
+
+    # -- files --------------------------------------------------------------------------
+    @classmethod
+    def read(cls, path: str | Path) -> Scenario:
+        path = Path(path)
+        if is_model(path):
+            raise IsochorError(
+                f"{path}: this is a model, not a scenario file; open it with `isochor edit`, "
+                "or name it as model.path in a scenario"
+            )
+        try:
+            input_file(path, "scenario", MAX_SCENARIO_BYTES)
+            text = path.read_text(encoding="utf-8")
+        except (OSError, ValueError) as exc:  # ValueError: a NUL byte, a bad encoding
+            raise IsochorError(f"{path}: cannot read the scenario ({exc})") from None
+        try:
+            doc = json.loads(text, parse_int=parse_int, parse_constant=parse_constant)
+        except json.JSONDecodeError as exc:
+            raise IsochorError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+        except RecursionError:
+            raise IsochorError(f"{path}: not a scenario (nested too deeply)") from None
+        except IsochorError as exc:
+            raise IsochorError(f"{path}: not valid JSON ({exc})") from None
+        try:
+            return replace(cls.from_dict(doc, path.parent), source=path)
+        except IsochorError as exc:
+            raise IsochorError(f"{path}: {exc}") from None
+
+    def write(self, path: str | Path) -> None:
+        """Write atomically: a temporary file in the same folder, then a rename.
+
+        The model path is written relative to the new file's folder, as the user sees the
+        folders (symbolic links are not resolved), so a folder moved with its scenario and
+        model still opens."""
+        path = Path(path)
+        doc = self.to_dict()
+        if "path" in self.model:
+            src = self.model_path()
+            try:
+                doc["model"]["path"] = os.path.relpath(src, os.path.abspath(path.parent))
+            except ValueError:  # another drive on Windows
+                doc["model"]["path"] = str(src)
+        atomic_write_text(path, json.dumps(doc, indent=2) + "\n")
+
+    def model_path(self) -> Path:
+        """The model file as an absolute path (relative paths are taken from the
+        scenario's folder). Symbolic links are kept, not resolved."""
+        p = Path(self.model["path"])
+        if not p.is_absolute() and self.base_dir is not None:
+            p = self.base_dir / p
+        return Path(os.path.abspath(p))
+
+    def checked(self, changes: dict[str, Any]) -> Scenario:
+        """``scenario`` with ``changes``, each checked as the scenario file's field would be
+        (the same one-line errors: ``lattice.nodes: each axis needs 2 to 10 nodes``)."""
+        doc = self.to_dict()
+        doc["model"] = {"builtin": "sphere"}  # the model is not what is checked here
+        lat = doc["lattice"]
+        if "lattice_nodes" in changes:
+            lat["nodes"] = [getattr(n, "item", lambda n=n: n)() for n in changes["lattice_nodes"]]
+        if "padding" in changes:
+            lat.pop("frame", None)
+            lat["padding"] = changes["padding"]
+        if "frame" in changes:
+            lat.pop("padding", None)
+            lat["frame"] = {"origin": changes["frame"][0], "axes": changes["frame"][1]}
+        if "target_volume_ratio" in changes:
+            doc["target_volume_ratio"] = changes["target_volume_ratio"]
+        for key in (*GOAL_DEFAULTS, "symmetry"):
+            if key in changes:
+                doc[key], doc["version"] = changes[key], VERSION
+        if "moves" in changes:  # a new lattice: the old edits name nodes it may not have
+            doc["moves"], doc["pins"] = [], []
+            doc.pop("poses", None)
+            doc.pop("timeline", None)
+        checked = Scenario.from_dict(doc)
+        return replace(checked, model=self.model, base_dir=self.base_dir, source=self.source)
+
+    def with_(self, **changes) -> Scenario:
+        return replace(self, **changes)

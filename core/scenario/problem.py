@@ -1,0 +1,152 @@
+"""From a scenario to a solvable problem: load the model's level pyramid, fit the lattice,
+apply the moves and pins.
+
+The scenario document (:mod:`isochor.core.scenario.document`) knows nothing of meshes; this module
+brings the document, the model files (:mod:`isochor.core.io.meshio`), the level pyramid
+(:mod:`isochor.core.solve.pyramid`), the built-in shapes and the embedded surface together.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .. import kernels
+from ..errors import IsochorError
+from ..goal.symmetry import Mirror
+from ..io.meshio import load_mesh
+from ..lattice import Lattice
+from ..mesh import TriMesh
+from ..solve.multilevel import EmbeddedSurface
+from ..solve.pyramid import build_pyramid
+from ..solve.solver import SolverOptions
+from .document import Scenario
+from .shapes import builtin_levels
+
+
+@dataclass(frozen=True)
+class SourceFile:
+    """The model file a problem was loaded from, as it was then: the export rewrites this
+    very file (:mod:`isochor.core.export`), so it must not have changed since."""
+
+    path: Path
+    size: int
+    mtime_ns: int
+
+    @classmethod
+    def of(cls, path: str | Path) -> SourceFile:
+        info = Path(path).stat()
+        return cls(Path(path), info.st_size, info.st_mtime_ns)
+
+    def unchanged(self) -> bool:
+        try:
+            info = self.path.stat()
+        except OSError:
+            return False
+        return (info.st_size, info.st_mtime_ns) == (self.size, self.mtime_ns)
+
+
+@dataclass(frozen=True)
+class Model:
+    """A model made ready to embed: its level pyramid (coarse to fine, the last is the
+    full mesh), what loading it said, and the file it came from (None for a built-in
+    shape or a mesh given in memory)."""
+
+    levels: tuple[TriMesh, ...]
+    warnings: tuple[str, ...] = ()
+    source: SourceFile | None = None
+
+
+@dataclass
+class Problem:
+    """A scenario made ready to solve: the embedded surface, start nodes and pins."""
+
+    scenario: Scenario
+    surface: EmbeddedSurface
+    nodes: np.ndarray  #: (n, 3) start positions: rest lattice with the moves applied
+    fixed: np.ndarray  #: (n, 3) bool: the fixed coordinates (moved, pinned, axis-pinned)
+    model: Model
+    #: what the lattice's fit says (the part of the model outside an explicit frame)
+    coverage: str | None = None
+
+    @property
+    def warnings(self) -> list[str]:
+        """Everything the user should know: the model's load warnings and the coverage."""
+        return [*self.model.warnings, *([self.coverage] if self.coverage else [])]
+
+    @property
+    def options(self) -> SolverOptions:
+        return SolverOptions(tol_volume=self.scenario.tol_volume, tol_nodes=self.scenario.tol_nodes)
+
+
+#: ``path -> Model``: how a model file becomes a pyramid.
+ModelLoader = Callable[[Path], Model]
+
+
+def load_model(path: str | Path) -> Model:
+    """The level pyramid of a model file, the warnings of loading it and its fingerprint:
+    the default :data:`ModelLoader`."""
+    source = SourceFile.of(path)
+    kernels.start()  # (loaded in the background meanwhile: the pyramid's checks use them)
+    loaded = load_mesh(path)
+    levels = build_pyramid(loaded.mesh, bodies=loaded.bodies)
+    return Model(tuple(levels), tuple(loaded.warnings), source)
+
+
+def scenario_model(scenario: Scenario, loader: ModelLoader | None = None) -> Model:
+    """The scenario's model: a built-in shape's levels, or its file loaded."""
+    if "builtin" in scenario.model:
+        params = {k: v for k, v in scenario.model.items() if k != "builtin"}
+        return Model(tuple(builtin_levels(scenario.model["builtin"], **params)))
+    path = scenario.model_path()
+    if not path.exists():
+        what = "a loop of symbolic links" if path.is_symlink() else "no such file"
+        where = f"{scenario.source}: " if scenario.source is not None else ""
+        raise IsochorError(
+            f"{where}model.path {scenario.model['path']!r}: {what} (looked for {path})"
+        )
+    return (loader or load_model)(path)
+
+
+def default_lattice_shape(mesh: TriMesh) -> tuple[int, int, int]:
+    """The lattice a model opens in: 4 nodes along its longest extent, 3 along the others."""
+    shape = [3, 3, 3]
+    shape[int(np.argmax(mesh.extents))] = 4
+    return tuple(shape)
+
+
+def coverage(lattice: Lattice, points: np.ndarray) -> str | None:
+    """A sentence when part of the model lies outside the lattice box, where the FFD is a
+    polynomial extrapolation rather than the lattice's own deformation; None when all of
+    it is inside."""
+    uvw = lattice.to_parameters(points)
+    beyond = np.maximum(-uvw, uvw - 1).max(axis=1)  # > 0 outside, in box sizes
+    outside = int(np.sum(beyond > 1e-9))
+    if not outside:
+        return None
+    return (
+        f"{100 * outside / len(points):.3g}% of the model's vertices ({outside} of "
+        f"{len(points)}) lie outside the lattice frame, up to {beyond.max():.3g} of its "
+        "size: the deformation there is extrapolated, not controlled by the lattice."
+    )
+
+
+def build(
+    scenario: Scenario, loader: ModelLoader | None = None, model: Model | None = None
+) -> Problem:
+    """Load the model (unless given), fit the lattice, apply moves and pins."""
+    if model is None:
+        model = scenario_model(scenario, loader)
+    levels = model.levels
+    if scenario.frame is None:
+        lattice = Lattice.around(levels[-1].vertices, scenario.lattice_nodes, scenario.padding)
+    else:
+        lattice = Lattice(scenario.lattice_nodes, scenario.frame[0], scenario.frame[1])
+    nodes, fixed = scenario.edit.apply(lattice)
+    Mirror.of(lattice, scenario.symmetry)  # a frame the mirror cannot use fails here
+    surface = EmbeddedSurface(lattice, levels)
+    fit = coverage(lattice, surface.full.vertices)
+    return Problem(scenario, surface, nodes, fixed, model, fit)

@@ -1,0 +1,386 @@
+"""Multi-level optimisation (paper Sec 4.3, Fig 4, Eq 27-29).
+
+A pyramid of versions of the same surface, coarse to fine, each about 4 times finer than
+the last; the last is the full-resolution mesh. The constrained minimisation runs on the
+coarsest level first; node positions X, penalty sigma and multiplier lambda are inherited by
+the next level. Each level measures its deviation against its own rest volume (Eq 27), but
+all deviations are divided by one reference volume (the full mesh's), so the inherited
+sigma means the same on every level.
+
+The solve ends at level k when
+  * the largest node change between level k-1 and k is below epsilon (``tol_nodes`` of the
+    object size), and level k meets the volume tolerance,
+  * the discretisation error of level k estimated by Eq 29 (applied to the deviation, with
+    the measured triangle ratio between levels) is within the tolerance, and
+  * the deviation measured on the full-resolution mesh is within the tolerance,
+or when the full-resolution level itself has been solved.
+
+:func:`solve` is a generator: it yields an immutable :class:`Progress` record every inner
+step and at each level's end, and returns a :class:`SolveResult`. Closing it stops the work
+at once. The window, the command line, the benchmark and the tests all drive the same one.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Generator, Sequence
+
+import numpy as np
+
+from .. import kernels
+from ..errors import IsochorError
+from ..goal.anchor import held_face
+from ..goal.constraints import Goal
+from ..goal.handles import Handle, HandleSystem, handle_rows
+from ..goal.symmetry import Mirror
+from .generators import relay
+from .outcome import outcome, preview
+from .records import LevelStats, Progress, SolveResult, frozen_copy
+from .solver import (
+    Coordinates,
+    Curvatures,
+    LevelProblem,
+    SolverOptions,
+    augmented_lagrangian,
+    worst,
+)
+from .surface import FOLD_MARGIN, EmbeddedSurface, live_level
+
+__all__ = ["EmbeddedSurface", "Progress", "SolveResult", "live_level", "solve"]
+
+
+@kernels.one_path
+def solve(
+    surface: EmbeddedSurface,
+    nodes: np.ndarray,
+    fixed: np.ndarray,
+    *,
+    target_ratio: float = 1.0,
+    goal: Goal | None = None,
+    handles: Sequence[Handle] = (),
+    options: SolverOptions | None = None,
+    start_level: int | None = None,
+    near: bool = False,
+    live: bool = False,
+) -> Generator[Progress, None, SolveResult]:
+    """Move the free nodes to the least spring energy that meets the goal.
+
+    Parameters
+    ----------
+    surface : the embedded surface pyramid
+    nodes : (n, 3) current node positions (moved nodes where the user put them)
+    fixed : (n,) bool, True for pinned and moved nodes, or (n, 3) bool per coordinate
+    target_ratio : target volume over the rest volume, when no ``goal`` is given
+    goal : what to hold (:class:`isochor.core.goal.constraints.Goal`); by default the volume at
+        ``target_ratio``, with the far-side anchor and the fold guard
+    handles : points of the model that must land at given places
+        (:class:`isochor.core.goal.handles.Handle`); under symmetry each gets its mirror image
+    start_level : first pyramid level to solve on; by default the coarsest level with at
+        least ``options.start_triangles`` triangles
+    near : ``nodes`` solve a nearby problem (the frame before, in a sequence): start on the
+        coarsest level whose constraints agree with the full mesh's there, with the
+        least-squares multipliers, as a re-solve does, even though the goal is not met yet
+    live : a frame of a live drag (implies ``near``): solve only up to the finest level with
+        at most ``options.live_triangles`` triangles and never touch the full mesh; the
+        result is measured on that level and marked ``preview`` (the solve when the drag
+        ends gives the measured one)
+
+    Yields
+    ------
+    Progress: one at once with the start state (step 0), then every inner step and at
+    each level's end.
+
+    Returns
+    -------
+    SolveResult, with the volumes, the folds and the centroid measured on the
+    full-resolution mesh (on the preview level, with ``live``).
+    """
+    opts = options or SolverOptions()
+    goal = goal or Goal(target_ratio=target_ratio)
+    t0 = time.perf_counter()
+    lattice = surface.lattice
+    x = np.array(nodes, dtype=np.float64).reshape(lattice.n_nodes, 3)
+    fixed = np.asarray(fixed, dtype=bool)
+    fixed = np.array(np.broadcast_to(fixed.reshape(-1, 1) if fixed.ndim == 1 else fixed, x.shape))
+    if not np.all(np.isfinite(x)):
+        raise IsochorError("A lattice node has a non-finite position.")
+    v_ref = abs(surface.rest_volume)
+    if v_ref <= 0:
+        raise IsochorError("The model encloses no volume, so there is no volume to preserve.")
+    size, center = surface.size, surface.center
+    handles = tuple(handles)
+    mirror = Mirror.of(lattice, goal.symmetry)
+    if mirror is not None:
+        x, fixed = mirror.symmetric(x, fixed)
+        handles += tuple(mirror.handle(h) for h in handles)
+    equations = handle_rows(lattice, handles) if handles else None
+    held, face = np.zeros(len(x), bool), ""
+    if goal.anchor == "far-side":
+        held, face = held_face(
+            lattice,
+            x,
+            fixed,
+            rows=equations[0] if equations else None,
+            points=np.array([h.at for h in handles]).reshape(-1, 3),
+            mirror_axis=None if mirror is None else mirror.axis,
+        )
+    fixed[held] = True
+    free = ~fixed
+    if mirror is None:
+        coords = Coordinates(free, center, size)
+    else:
+        own, *ties = mirror.ties(free)
+        coords = Coordinates(own, center, size, tuple(ties))
+    n_levels = len(surface.levels)
+    if start_level is None:
+        start_level = next(
+            (k for k, m in enumerate(surface.levels) if m.n_faces >= opts.start_triangles),
+            n_levels - 1,
+        )
+    start_level = start_level % n_levels
+    top = n_levels - 1  # the level the solve ends on at the latest
+    if live:
+        top = live_level(surface, opts.live_triangles)
+        start_level, near = min(start_level, top), True
+    springs = surface.springs
+    system = None
+    if handles and coords.count:
+        spare = surface.constraints(start_level, goal).own
+        system = HandleSystem(lattice, handles, x, coords.reduce, spare, size, equations)
+
+    def constraints(k):
+        return surface.constraints(k, goal, system)
+
+    def result(x, stats, terminal, lam, sigma, converged, message=""):
+        return (preview if live else outcome)(
+            surface, goal, opts, x, stats, terminal, lam, sigma, converged, message, held, face,
+            int(coords.moving.any(axis=1).sum()), t0, system, mirror,
+        )  # fmt: skip
+
+    if not coords.count:
+        return result(x, [], -1, np.zeros(1), 0.0, True, "no free node: nothing to solve")
+
+    first = constraints(start_level)
+    c, dc = first.values_and_jacobian(x)
+    if np.max(np.abs(coords.reduce(dc[: first.own]))) * size < 1e-9:
+        raise IsochorError(
+            "The free nodes cannot change the model's volume: choose free nodes that influence "
+            "the model, or pin fewer nodes."
+        )
+    # The first record comes before any work on the fine levels, so a window can redraw
+    # the user's edit at once.
+    yield Progress(
+        frozen_copy(x),
+        start_level,
+        n_levels,
+        first.level.triangles,
+        0,
+        worst(c),
+        opts.sigma0,
+        0.0,
+        springs.energy(x) / size**2,
+        time.perf_counter() - t0,
+    )
+    # the fold guard's samples (points inside the model: a second on a big model the
+    # first time) are found after the first record
+    if goal.fold_guard:
+        guard = surface.fold_guard(FOLD_MARGIN * min(1.0, goal.target_ratio))
+
+        def energy_grad(x):
+            e, de = springs.energy_and_gradient(x)
+            p, dp = guard.value_and_gradient(x)
+            if p == 0.0:  # no sample within the margin: no penalty, no force
+                return e, de
+            return e + p * size**2, de + dp * size**2
+
+        def hessian(x):
+            h, near = springs.hessian(x), guard.gauss_newton(x)
+            if near.any():  # (zero where no sample is within the margin)
+                h += near * size**2
+            return h
+    else:
+        energy_grad, hessian = springs.energy_and_gradient, springs.hessian
+    # The preconditioner's curvature, shared by the levels. A solve near the one before (a
+    # drag's frame, its release) takes it from there while the nodes stayed near (a new
+    # factorisation costs 50 ms at 8x8x8); any other solve takes its own, so that its
+    # result never depends on what was solved before.
+    margin = guard.margin if goal.fold_guard else None
+    curvatures = surface.shared(
+        ("curvatures", coords.key, margin), lambda: Curvatures(hessian, coords), reuse=near
+    )
+
+    lam, sigma = np.zeros(first.count), opts.sigma0
+    warm = _warm_start(constraints, top + 1, x, coords, energy_grad, opts, near, start_level)
+    x_prev = x
+    if warm is not None:  # already at the volume: skip the coarse levels whose optimum differs
+        start_level, lam = max(start_level, warm[0]), warm[1]
+        if opts.precondition:  # the multipliers are right already: hold the volume firmly
+            sigma = max(sigma, opts.sigma_warm)
+    elif opts.symmetry_break > 0:
+        # An exactly symmetric start stays on the symmetric manifold under any gradient
+        # method and can end on a saddle (the torus stretch does). A tiny fixed-seed
+        # nudge of the free coordinates lets the minimiser leave it; results stay
+        # reproducible.
+        nudge = np.random.default_rng(0).standard_normal(coords.count)
+        x = x.copy()
+        x[coords.free] += opts.symmetry_break * size * nudge
+        x = coords.tied(x)
+    stats: list[LevelStats] = []
+    terminal = top
+    converged_level = False
+    for k in range(start_level, top + 1):
+        t_level = time.perf_counter()
+        cons = constraints(k)
+        problem = LevelProblem(
+            x, coords, energy_grad, cons.values_and_jacobian, center, size, curvatures
+        )
+        run = augmented_lagrangian(problem, problem.to_y(x), lam, sigma, opts)
+
+        def progress(it, k=k, cons=cons, problem=problem):
+            return Progress(
+                problem.nodes_of(it.y),
+                k,
+                n_levels,
+                cons.level.triangles,
+                it.step,
+                it.deviation,
+                it.sigma,
+                it.lam,
+                it.energy,
+                time.perf_counter() - t0,
+            )
+
+        try:
+            al = yield from relay(run, progress)
+        except FloatingPointError:
+            raise IsochorError(
+                f"The solve broke down on level {k}: the lattice is folded so far that the "
+                "volume has no usable gradient. Undo the last move or pin fewer nodes."
+            ) from None
+        x = problem.to_nodes(al.y)
+        lam, sigma = al.lam, al.sigma
+        change = float(np.max(np.abs(x - x_prev))) / size
+        estimate = None
+        if k > 0:
+            coarse = constraints(k - 1)
+            estimate = _discretisation_error(coarse.values(x), cons.values(x), coarse, cons)
+        stats.append(
+            LevelStats(
+                k,
+                cons.level.triangles,
+                al.steps,
+                time.perf_counter() - t_level,
+                change,
+                al.deviation,
+                estimate,
+            )
+        )
+        yield Progress(
+            frozen_copy(x),
+            k,
+            n_levels,
+            cons.level.triangles,
+            al.steps,
+            al.deviation,
+            sigma,
+            float(lam[0]),
+            al.energy,
+            time.perf_counter() - t0,
+            True,
+            change,
+        )
+        if not al.converged:
+            return result(
+                x,
+                stats,
+                k,
+                lam,
+                sigma,
+                False,
+                f"the volume constraint did not converge on level {k}",
+            )
+        if k == top:
+            converged_level = True
+            break
+        if change < opts.tol_nodes and estimate is not None and estimate <= opts.tol_volume:
+            c_full = constraints(top).values(x)
+            if np.max(np.abs(c_full)) <= opts.tol_volume:
+                terminal, converged_level = k, True
+                break
+        x_prev = x
+    return result(x, stats, terminal, lam, sigma, converged_level)
+
+
+def _warm_start(
+    constraints, n, x, coords, energy_grad, opts, near=False, first=0
+) -> tuple[int, np.ndarray] | None:
+    """Where to start when ``x`` already meets the goal (a re-solve, a small edit).
+
+    Returns the coarsest level whose own constraints at ``x`` agree with the full mesh's to
+    within the tolerance, and the least-squares Lagrange multipliers there, or None when
+    ``x`` does not meet the goal (then the solve starts at the coarsest level with lambda 0).
+    A converged result restarted this way stops after one level and no steps, instead of
+    re-deriving a different equilibrium from the coarse levels (the paper's Plate 6).
+    ``constraints(k)`` are level k's constraints, of ``n`` levels (the last is the reference,
+    the full mesh but in a live preview). With ``near`` the goal need not be met at ``x``:
+    the level is the coarsest whose constraints differ from the reference's by at most the
+    tolerance. Without ``near``, the levels from ``first`` up are asked first
+    (:func:`_missed`): a drag that changed the volume is seen there, and the full mesh is
+    not evaluated at all.
+    """
+    if not near and _missed(constraints, n, x, opts, first):
+        return None
+    c_full = constraints(n - 1).values(x)
+    if np.max(np.abs(c_full)) > opts.tol_volume and not near:
+        return None
+
+    def agrees(k):
+        c = constraints(k).values(x)
+        met = near or np.max(np.abs(c)) <= opts.volume_margin * opts.tol_volume
+        return met and np.max(np.abs(c - c_full)) <= opts.tol_volume
+
+    k = next(k for k in range(n) if k == n - 1 or agrees(k))
+    _, dc = constraints(k).values_and_jacobian(x)
+    _, de = energy_grad(x)
+    de, dc = coords.reduce(de) / coords.size, coords.reduce(dc) * coords.size
+    lam, *_ = np.linalg.lstsq(dc.T, de, rcond=None)
+    return k, lam
+
+
+#: a level's deviation proves the goal missed on the full mesh when it is beyond the
+#: tolerance by more than this many times the level's discretisation error (Eq 29)
+MISS_SAFETY = 4.0
+
+
+def _missed(constraints, n, x, opts, first: int) -> bool:
+    """True when a level below the full mesh shows that ``x`` misses the goal there too.
+
+    Level k's constraints differ from the full mesh's by its discretisation error, which
+    Eq 29 estimates from levels k-1 and k (the deviations' difference over the triangle
+    ratio minus one). When ``|c_k|`` exceeds the tolerance by more than ``MISS_SAFETY`` of
+    those estimates, the full mesh misses the goal as well. The levels are asked from
+    ``first`` (at least the second level) up to the one below the full mesh, and the answer
+    comes from the first that proves it; False means not proven (the full mesh decides).
+    Handles' constraints are the same on every level, so their misses show on the first.
+    """
+    below = max(first, 1) - 1
+    if below + 1 >= n - 1:
+        return False
+    previous = constraints(below)
+    c_prev = previous.values(x)
+    for k in range(below + 1, n - 1):
+        cons = constraints(k)
+        c = cons.values(x)
+        error = _discretisation_error(c_prev, c, previous, cons)
+        if np.max(np.abs(c)) > opts.tol_volume + MISS_SAFETY * error:
+            return True
+        previous, c_prev = cons, c
+    return False
+
+
+def _discretisation_error(c_coarse, c_fine, coarse, fine) -> float:
+    """Eq 29 on the constraints: the error of the ``fine`` level's constraint values
+    ``c_fine``, estimated from the next ``coarse`` level's ``c_coarse`` at the same nodes
+    (their largest difference over the measured triangle ratio minus one)."""
+    ratio = fine.level.triangles / coarse.level.triangles
+    return float(np.max(np.abs(c_coarse - c_fine))) / max(ratio - 1.0, 1e-9)

@@ -1,0 +1,369 @@
+"""Augmented Lagrangian over the free nodes (paper Eq 15-21, Fig 3).
+
+``La = E + sigma/2 |c|^2 - lambda . c`` where ``c`` are the constraints, each made
+scale-free (the volume deviation ``(V(X) - V_target) / V_ref``, one per body, the centroid:
+:mod:`isochor.core.goal.constraints`), and ``E`` is the spring energy of node positions measured
+in units of the object size. The optimisation variables are the free node coordinates in
+those units, ``y = (X_free - centre) / size`` (a node pinned on some axes only is free on
+the others), so a model in millimetres and the same model in metres take the same steps
+with the same sigma.
+
+The inner unconstrained minimisation is limited-memory BFGS (:mod:`isochor.core.solve.lbfgs`),
+a generator, so that the editor sees every iterate as it comes and can stop the work at
+once.
+
+Outer loop (Fig 3): ``lambda <- lambda - sigma c``; sigma doubles whenever the worst
+``|c_i|`` did not fall to half its previous value (Powell's rule), up to ``sigma_max``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..defaults import TOL_NODES, TOL_VOLUME
+from .generators import relay
+from .lbfgs import Objective, lbfgs
+from .precondition import Curvature, Preconditioner
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """Tolerances and limits; every length is relative to the object size, every volume to
+    the reference volume, so the defaults suit any model."""
+
+    tol_volume: float = TOL_VOLUME  #: |dV| / V0 that counts as preserved
+    tol_nodes: float = TOL_NODES  #: epsilon: largest node change between levels (Sec 4.3)
+    sigma0: float = 10.0  #: first penalty factor
+    #: first penalty factor of a warm start (a re-solve, a drag's frame), preconditioned:
+    #: its multipliers come from the start point, so a firm penalty only speeds it up
+    #: (a live frame on the torus example: 23 steps at sigma 10, 11 at 1000)
+    sigma_warm: float = 1000.0
+    sigma_max: float = 1e8  #: cap on the penalty factor (paper: "an upper bound for sigma")
+    #: inner minimisation stops when max |dLa/dy| is below this (1e-6 cost 7-40% more time
+    #: for no gain in the results' accuracy; 1e-4 lets the cow's node change reach 0.1%)
+    gtol: float = 1e-5
+    max_inner: int = 500  #: inner steps per outer iteration at most
+    max_outer: int = 60  #: Lagrange-multiplier updates per level at most
+    #: inner steps per level at most, over all outer iterations: an edit that cannot be
+    #: met (a node dragged a thousand sizes away against the fold guard) stops as not
+    #: converged in seconds instead of spending max_outer * max_inner steps
+    max_steps: int = 5000
+    memory: int = 12  #: L-BFGS correction pairs
+    volume_margin: float = 0.5  #: a level is solved at ``volume_margin * tol_volume``
+    #: size of the start nudge of free nodes, / object size. The preconditioned solver
+    #: converges so fast that a 1e-4 nudge leaves it on the torus stretch's symmetric
+    #: saddle (spring energy 0.3137 against the minimum's 0.3111); 1e-2 does not.
+    symmetry_break: float = 1e-2
+    #: A fresh solve starts on the coarsest level with at least this many triangles. Below
+    #: a few hundred triangles a step costs as much as on a mid-sized level (fixed call
+    #: overhead) and the level's optimum is far from the real one (a 16-triangle torus has
+    #: 14% of the torus's volume), so those levels cost time without earning it: measured
+    #: on the paper's examples, starting at 16 or 20 triangles was up to 2x slower than
+    #: starting near 1000 (docs/BENCHMARKS.md, start-level sweep). 0 gives the paper's
+    #: schedule.
+    start_triangles: int = 1000
+    #: start each inner minimisation from the springs' Hessian and the penalty's
+    #: Gauss-Newton term (:mod:`isochor.core.solve.precondition`) instead of a scaled identity
+    precondition: bool = True
+    #: a live drag's frames are solved up to the finest level with at most this many
+    #: triangles (:func:`isochor.core.solve.multilevel.solve` with ``live``)
+    live_triangles: int = 6000
+
+
+#: the preconditioner's curvature is taken again once the variables moved this far
+#: (/ object size) from where it was taken; a drag's frame and a level that starts near its
+#: optimum keep one
+CURVATURE_MOVE = 1e-2
+
+
+class Curvatures:
+    """The preconditioner's curvature (:class:`~isochor.core.solve.precondition.Curvature`) of
+    one solve, shared by its levels (the springs and the fold guard are the same on every
+    level; each level adds its own constraints), and by the solves of a drag that follow
+    it (:meth:`isochor.core.solve.surface.EmbeddedSurface.shared`): taken at the first variables
+    asked for, again once they moved more than :data:`CURVATURE_MOVE` from there.
+
+    Parameters
+    ----------
+    hessian : ``X -> (3n, 3n)`` the energy's Hessian over the node coordinates
+    coords : the solve's :class:`Coordinates`
+    """
+
+    def __init__(self, hessian, coords: Coordinates) -> None:
+        self.hessian, self.coords = hessian, coords
+        #: (y, its curvature): one tuple, so that a solver thread that is being stopped
+        #: and the next solve's thread never see half of an update
+        self._taken: tuple[np.ndarray, Curvature] | None = None
+
+    def at(self, y: np.ndarray, nodes) -> Curvature:
+        """The curvature for variables ``y``; ``nodes()`` gives their node positions."""
+        taken = self._taken
+        if taken is None or np.abs(y - taken[0]).max() > CURVATURE_MOVE:
+            taken = (np.array(y), Curvature(self.coords.restrict(self.hessian(nodes()))))
+            self._taken = taken
+        return taken[1]
+
+
+@dataclass(frozen=True)
+class Iterate:
+    """One accepted inner step."""
+
+    y: np.ndarray
+    energy: float
+    deviation: float  #: the worst constraint residual
+    step: int  #: inner steps so far at this level
+    outer: int
+    sigma: float
+    lam: float  #: the first multiplier (the total volume's, or the first body's)
+
+
+class Coordinates:
+    """The solver's variables ``y``: the free node coordinates in object sizes about the
+    centre, and the coordinates tied to them (under symmetry the high side of the lattice
+    follows the low side: ``x.flat[dst] = sign * x.flat[src] + offset``, see
+    :meth:`isochor.core.goal.symmetry.Mirror.ties`).
+
+    Parameters
+    ----------
+    free : (n, 3) bool, the coordinates that are variables (an (n,) mask frees whole nodes)
+    center, size : the normalisation of lengths
+    ties : ``(dst, src, sign, offset)`` flat arrays, or None
+    """
+
+    def __init__(self, free, center, size, ties=None) -> None:
+        free = np.asarray(free, dtype=bool)
+        self.free = free[:, None].repeat(3, axis=1) if free.ndim == 1 else free.copy()
+        self.center, self.size = np.asarray(center, dtype=np.float64), float(size)
+        self._origin = np.broadcast_to(self.center, self.free.shape)[self.free]
+        empty = np.zeros(0, dtype=int)
+        self.dst, self.src, self.sign, self.offset = ties or (empty, empty, 0.0, 0.0)
+        self._columns = np.flatnonzero(self.free.ravel())
+        self.count = len(self._columns)
+
+    @cached_property
+    def key(self) -> tuple:
+        """What the variables are: equal keys, the same variables (see :class:`Curvatures`)."""
+        ties = (self.dst, self.src, self.sign, self.offset)
+        return (self.free.tobytes(), self.center.tobytes(), self.size) + tuple(
+            np.asarray(t, dtype=np.float64).tobytes() for t in ties
+        )
+
+    @cached_property
+    def matrix(self) -> sp.csr_matrix:
+        """(count, 3n) sparse: :meth:`reduce` as a matrix, ``reduce(g) = matrix @ g.ravel()``."""
+        n = self.free.size
+        rows = np.full(n, -1)
+        rows[self._columns] = np.arange(self.count)
+        r, c, v = [np.arange(self.count)], [self._columns], [np.ones(self.count)]
+        if len(self.dst):
+            src, dst = np.asarray(self.src), np.asarray(self.dst)
+            sign = np.broadcast_to(np.asarray(self.sign, dtype=np.float64), src.shape)
+            keep = rows[src] >= 0
+            r.append(rows[src][keep])
+            c.append(dst[keep])
+            v.append(sign[keep])
+        return sp.csr_matrix(
+            (np.concatenate(v), (np.concatenate(r), np.concatenate(c))), shape=(self.count, n)
+        )
+
+    def restrict(self, h: np.ndarray) -> np.ndarray:
+        """A (3n, 3n) matrix over the node coordinates (a Hessian) as one over the
+        variables, ``matrix @ h @ matrix.T``: a plain selection without ties."""
+        if len(self.dst):
+            return np.asarray(self.matrix @ (self.matrix @ h).T)
+        return h.take(self._columns, axis=0).take(self._columns, axis=1)
+
+    @property
+    def moving(self) -> np.ndarray:
+        """(n, 3) bool: every coordinate the solve changes (variables and tied ones)."""
+        out = self.free.copy()
+        out.reshape(-1)[self.dst] = True
+        return out
+
+    def to_y(self, nodes: np.ndarray) -> np.ndarray:
+        return (np.asarray(nodes, dtype=np.float64)[self.free] - self._origin) / self.size
+
+    def to_nodes(self, y: np.ndarray, template: np.ndarray) -> np.ndarray:
+        out = np.array(template, dtype=np.float64)
+        out.reshape(-1)[self._columns] = self._origin + self.size * y
+        return self.tied(out)
+
+    def tied(self, nodes: np.ndarray) -> np.ndarray:
+        """``nodes`` (changed in place) with the tied coordinates set from their variables."""
+        if len(self.dst):
+            flat = nodes.reshape(-1)
+            flat[self.dst] = self.sign * flat[self.src] + self.offset
+        return nodes
+
+    def reduce(self, g: np.ndarray) -> np.ndarray:
+        """A gradient over the nodes ``(..., n, 3)`` as one over the variables
+        ``(..., count)`` (a tied coordinate's part goes to the variable it follows)."""
+        g = np.asarray(g, dtype=np.float64)
+        flat = g.reshape(*g.shape[:-2], -1)
+        if len(self.dst):
+            flat = flat.copy()
+            flat[..., self.src] += self.sign * flat[..., self.dst]
+        return flat.take(self._columns, axis=-1)
+
+
+class LevelProblem:
+    """Energy and constraints of one level as functions of the variables ``y``.
+
+    Parameters
+    ----------
+    nodes : (n, 3) current node positions; the fixed coordinates stay as given
+    free : :class:`Coordinates`, or an (n, 3) bool mask of the coordinates the solver may
+        move (an (n,) mask frees whole nodes)
+    energy_grad : ``X -> (E, dE/dX)`` in world units
+    constraint_grad : ``X -> (c, dc/dX)``, ``(m,)`` and ``(m, n, 3)``, already scale-free
+        (see :mod:`isochor.core.goal.constraints`)
+    center, size : the normalisation of lengths
+    curvatures : the :class:`Curvatures` the levels of a solve share; None: no
+        preconditioner
+    """
+
+    def __init__(self, nodes, free, energy_grad, constraint_grad, center, size, curvatures=None):
+        self.template = np.array(nodes, dtype=np.float64)
+        self.coords = free if isinstance(free, Coordinates) else Coordinates(free, center, size)
+        self.energy_grad, self.constraint_grad = energy_grad, constraint_grad
+        self.curvatures: Curvatures | None = curvatures
+        self._preconditioner: Preconditioner | None = None
+        self._last: tuple[bytes, tuple] | None = None  # (y's bytes, its terms)
+        self._evaluated: tuple[np.ndarray, np.ndarray] | None = None  # (y, its nodes)
+        self.size = self.coords.size
+
+    def preconditioner(self, y: np.ndarray, sigma: float):
+        """``v -> M^-1 v``, the approximate inverse Hessian of the augmented Lagrangian
+        (:mod:`isochor.core.solve.precondition`): the shared curvature (see :class:`Curvatures`)
+        with this level's constraint gradients, taken where the level first asks after the
+        curvature was (re)taken; None without an energy Hessian."""
+        if self.curvatures is None:
+            return None
+        curvature = self.curvatures.at(y, lambda: self.to_nodes(y))
+        pre = self._preconditioner
+        if pre is None or pre.curvature is not curvature:
+            jac = self.terms(y)[3]  # (where the run starts: its first evaluation, memoised)
+            pre = self._preconditioner = Preconditioner(curvature, jac)
+        return pre.at(sigma)
+
+    def to_y(self, nodes: np.ndarray) -> np.ndarray:
+        return self.coords.to_y(nodes)
+
+    def to_nodes(self, y: np.ndarray) -> np.ndarray:
+        return self.coords.to_nodes(y, self.template)
+
+    def terms(self, y: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+        """Normalised energy, its gradient, the constraints c (m,) and their gradients
+        (m, len(y)), all in ``y``. The last ``y``'s are remembered: the solver asks for
+        them again where an inner run ends and where the next one starts."""
+        key = np.asarray(y, dtype=np.float64).tobytes()
+        last = self._last
+        if last is not None and last[0] == key:
+            return last[1]
+        x = self.to_nodes(y)
+        x.flags.writeable = False  # (handed on by nodes_of)
+        e, de = self.energy_grad(x)
+        c, dc = self.constraint_grad(x)
+        s, reduce = self.size, self.coords.reduce
+        out = e / s**2, reduce(de) / s, np.asarray(c, dtype=np.float64), reduce(dc) * s
+        self._last = (key, out)
+        self._evaluated = (y, x)
+        return out
+
+    def nodes_of(self, y: np.ndarray) -> np.ndarray:
+        """Read-only (n, 3) nodes for ``y``: those its evaluation used when ``y`` is the
+        array evaluated last (an accepted step's, for its progress record), else new."""
+        last = self._evaluated
+        if last is not None and last[0] is y:
+            return last[1]
+        nodes = self.to_nodes(y)
+        nodes.flags.writeable = False
+        return nodes
+
+    def deviation(self, y: np.ndarray) -> np.ndarray:
+        return self.terms(y)[2]
+
+    def lagrangian(self, lam: np.ndarray, sigma: float) -> Objective:
+        """``y -> (La, dLa/dy, (E, worst c))`` for fixed multipliers and penalty (Eq 19)."""
+
+        lam0 = float(lam[0]) if len(lam) == 1 else None
+
+        def fun(y: np.ndarray):
+            e, de, c, dc = self.terms(y)
+            if lam0 is not None:  # the usual case, the volume alone: scalars, same numbers
+                c0 = float(c[0])
+                return e + c0 * (0.5 * sigma * c0 - lam0), de + (sigma * c0 - lam0) * dc[0], (e, c0)
+            la = e + float(c @ (0.5 * sigma * c - lam))
+            return la, de + (sigma * c - lam) @ dc, (e, worst(c))
+
+        return fun
+
+
+def worst(c: np.ndarray) -> float:
+    """The constraint residual of largest magnitude, with its sign."""
+    c = np.asarray(c, dtype=np.float64)
+    if c.size <= 1:  # the usual case: the volume alone
+        return float(c[0]) if c.size else 0.0
+    return float(c[np.abs(c).argmax()])
+
+
+@dataclass(frozen=True)
+class ALResult:
+    y: np.ndarray
+    lam: np.ndarray  #: (m,) multipliers
+    sigma: float
+    deviation: float  #: the worst constraint residual
+    energy: float
+    steps: int
+    outer: int
+    converged: bool
+
+
+def augmented_lagrangian(
+    problem: LevelProblem,
+    y0: np.ndarray,
+    lam: np.ndarray,
+    sigma: float,
+    options: SolverOptions,
+) -> Generator[Iterate, None, ALResult]:
+    """Fig 3: minimise La, update lambda, raise sigma when the worst |c| does not halve;
+    repeat."""
+    tol = options.volume_margin * options.tol_volume
+    y = np.array(y0, dtype=np.float64)
+    lam = np.array(lam, dtype=np.float64)
+    g_prev = float(np.max(np.abs(problem.deviation(y))))
+    steps = 0
+    energy = g = float("nan")
+    for outer in range(options.max_outer):
+        inner = lbfgs(
+            problem.lagrangian(lam, sigma),
+            y,
+            gtol=options.gtol,
+            max_iter=options.max_inner,
+            memory=options.memory,
+            h0=problem.preconditioner(y, sigma) if options.precondition else None,
+        )
+
+        def iterate(record, outer=outer, sigma=sigma, lam=lam):
+            nonlocal steps
+            steps += 1
+            y_k, (energy_k, g_k) = record
+            return Iterate(y_k, energy_k, g_k, steps, outer, sigma, float(lam[0]))
+
+        y, _, _ = yield from relay(inner, iterate)
+        energy, _, c, _ = problem.terms(y)
+        g = float(np.max(np.abs(c)))
+        if g <= tol:
+            return ALResult(y, lam, sigma, worst(c), energy, steps, outer + 1, True)
+        if steps >= options.max_steps:
+            break
+        lam = lam - sigma * c
+        if g > 0.5 * g_prev:
+            sigma = min(2.0 * sigma, options.sigma_max)
+        g_prev = g
+    return ALResult(y, lam, sigma, worst(c), energy, steps, outer + 1, False)
