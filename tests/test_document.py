@@ -238,6 +238,46 @@ def test_select_all(doc):
     assert events == ["selection"]
 
 
+def test_the_selection_part_adds_toggles_and_follows_the_state(doc, sphere_problem):
+    events = events_of(doc)
+    sel = doc.selection
+    assert sel.add([4, 2]) is True and sel.rows.tolist() == [2, 4]
+    assert sel.toggle([2, 6]) is True and sel.rows.tolist() == [4, 6]
+    assert sel.none() is True and sel.rows.tolist() == []
+    assert sel.none() is False
+    assert events == ["selection"] * 3
+    # a new current state: the rows stay (silently) on the same lattice, go with a new one
+    sel.select([3, 26])
+    events.clear()
+    commit(doc, noderules.edit_pins(doc.base(), [3], True))
+    assert sel.rows.tolist() == [3, 26] and events == ["state"]
+    commit(doc, latticerules.edit_lattice(doc.base(), (2, 2, 2)))
+    assert sel.rows.tolist() == [] and events == ["state", "scene", "state"]
+
+
+def test_the_edit_base_is_a_snapshot(doc):
+    """A rule reads the base it is given: what changes in the document after the base was
+    taken does not reach it, and nothing a rule does changes the document."""
+    doc.selection.select([13])
+    doc.live_nodes = doc.state.nodes + 0.01
+    base = doc.base()
+    assert base.state is doc.state and base.rows.tolist() == [13] and base.handle is None
+    np.testing.assert_array_equal(base.nodes, doc.base_nodes())
+    assert base.problems is doc.problems
+    with pytest.raises(ValueError, match="read-only"):
+        base.nodes[0, 0] = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        base.rows[0] = 1
+    doc.selection.select([0])
+    doc.live_nodes = None
+    edit = noderules.edit_toggle_pin(base)
+    assert np.flatnonzero(edit.state.pin_axes.any(axis=1)).tolist() == [13], "the old rows"
+    free = np.flatnonzero(~edit.state.fixed)
+    np.testing.assert_array_equal(edit.state.nodes[free], base.nodes[free])
+    assert doc.state is base.state and doc.selection.rows.tolist() == [0]
+    assert not doc.state.pinned.any()
+
+
 # -- edit_position ---------------------------------------------------------------------------
 def test_edit_position_moves_one_node_to_the_typed_value(doc):
     r = int(free_rows(doc)[0])
@@ -1091,7 +1131,9 @@ def test_each_goal_setting_is_an_undoable_edit_with_words(doc, rule, value, sett
     assert not edit.state.same_edit(doc.state), "a setting makes another edit"
     after = commit(doc, edit)
     assert doc.needs_solve()
-    assert getattr(goalrules, rule)(doc.base(), value) is None, "the same value again: nothing to do"
+    assert getattr(goalrules, rule)(doc.base(), value) is None, (
+        "the same value again: nothing to do"
+    )
     doc.set_cell(before)  # undo
     assert getattr(doc.state, setting) == old
     doc.set_cell(after)  # redo
