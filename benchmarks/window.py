@@ -182,7 +182,7 @@ def settled(win) -> bool:
     """Nothing runs, no frame is pending and the full-resolution model is drawn."""
     vp = win.viewport
     full = getattr(vp, "showing_full", lambda: True)()
-    return not win.is_solving() and win.session._pending is None and full
+    return not win.is_solving() and not win.session.frame_pending and full
 
 
 def drag_node(win) -> int:

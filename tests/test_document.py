@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from isochor.app.editor import goalrules, latticerules, noderules
 from isochor.app.editor.document import (
     DocState,
     Document,
@@ -120,7 +121,7 @@ def test_example_document_starts_with_its_moves(torus_problem):
     assert st.target_ratio == 1.0
     assert st.solved is False and st.result is None and not st.converged
     assert d.needs_solve()
-    assert d.selection.tolist() == []
+    assert d.selection.rows.tolist() == []
     assert repr(d.cell) == "StateCell(solved=False)"
 
 
@@ -200,49 +201,89 @@ def test_docstate_edits_and_same_edit(sphere_problem):
 # -- selection -------------------------------------------------------------------------------
 def test_select_replace_add_toggle_and_events(doc):
     events = events_of(doc)
-    assert doc.select([5, 3, 3]) is True
-    assert doc.selection.tolist() == [3, 5]
-    assert doc.select([3, 5]) is False  # no change, no event
-    assert doc.select([7, 1], "add") is True
-    assert doc.selection.tolist() == [1, 3, 5, 7]
-    assert doc.select([3], "add") is False
-    assert doc.select([3, 4], "toggle") is True
-    assert doc.selection.tolist() == [1, 4, 5, 7]
-    assert doc.select(np.array([2]), "replace") is True
-    assert doc.selection.tolist() == [2]
-    assert doc.select([], "toggle") is False
-    assert doc.select(range(0)) is True
-    assert doc.selection.tolist() == []
+    assert doc.selection.select([5, 3, 3]) is True
+    assert doc.selection.rows.tolist() == [3, 5]
+    assert doc.selection.select([3, 5]) is False  # no change, no event
+    assert doc.selection.select([7, 1], "add") is True
+    assert doc.selection.rows.tolist() == [1, 3, 5, 7]
+    assert doc.selection.select([3], "add") is False
+    assert doc.selection.select([3, 4], "toggle") is True
+    assert doc.selection.rows.tolist() == [1, 4, 5, 7]
+    assert doc.selection.select(np.array([2]), "replace") is True
+    assert doc.selection.rows.tolist() == [2]
+    assert doc.selection.select([], "toggle") is False
+    assert doc.selection.select(range(0)) is True
+    assert doc.selection.rows.tolist() == []
     assert events == ["selection"] * 5
-    assert doc.selection.dtype.kind == "i"
+    assert doc.selection.rows.dtype.kind == "i"
 
 
 def test_select_rejects_rows_outside_the_lattice_and_unknown_modes(doc):
-    doc.select([1])
+    doc.selection.select([1])
     events = events_of(doc)
     for bad in ([27], [-1], [0, 30]):
         with pytest.raises(IndexError):
-            doc.select(bad)
+            doc.selection.select(bad)
     with pytest.raises(ValueError, match="unknown selection mode"):
-        doc.select([2], "intersect")
-    assert doc.selection.tolist() == [1]
+        doc.selection.select([2], "intersect")
+    assert doc.selection.rows.tolist() == [1]
     assert events == []
 
 
 def test_select_all(doc):
     events = events_of(doc)
-    assert doc.select_all() is True
-    assert doc.selection.tolist() == list(range(27))
-    assert doc.select_all() is False
+    assert doc.selection.all() is True
+    assert doc.selection.rows.tolist() == list(range(27))
+    assert doc.selection.all() is False
     assert events == ["selection"]
+
+
+def test_the_selection_part_adds_toggles_and_follows_the_state(doc, sphere_problem):
+    events = events_of(doc)
+    sel = doc.selection
+    assert sel.add([4, 2]) is True and sel.rows.tolist() == [2, 4]
+    assert sel.toggle([2, 6]) is True and sel.rows.tolist() == [4, 6]
+    assert sel.none() is True and sel.rows.tolist() == []
+    assert sel.none() is False
+    assert events == ["selection"] * 3
+    # a new current state: the rows stay (silently) on the same lattice, go with a new one
+    sel.select([3, 26])
+    events.clear()
+    commit(doc, noderules.edit_pins(doc.base(), [3], True))
+    assert sel.rows.tolist() == [3, 26] and events == ["state"]
+    commit(doc, latticerules.edit_lattice(doc.base(), (2, 2, 2)))
+    assert sel.rows.tolist() == [] and events == ["state", "scene", "state"]
+
+
+def test_the_edit_base_is_a_snapshot(doc):
+    """A rule reads the base it is given: what changes in the document after the base was
+    taken does not reach it, and nothing a rule does changes the document."""
+    doc.selection.select([13])
+    doc.live_nodes = doc.state.nodes + 0.01
+    base = doc.base()
+    assert base.state is doc.state and base.rows.tolist() == [13] and base.handle is None
+    np.testing.assert_array_equal(base.nodes, doc.base_nodes())
+    assert base.problems is doc.problems
+    with pytest.raises(ValueError, match="read-only"):
+        base.nodes[0, 0] = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        base.rows[0] = 1
+    doc.selection.select([0])
+    doc.live_nodes = None
+    edit = noderules.edit_toggle_pin(base)
+    assert np.flatnonzero(edit.state.pin_axes.any(axis=1)).tolist() == [13], "the old rows"
+    free = np.flatnonzero(~edit.state.fixed)
+    np.testing.assert_array_equal(edit.state.nodes[free], base.nodes[free])
+    assert doc.state is base.state and doc.selection.rows.tolist() == [0]
+    assert not doc.state.pinned.any()
 
 
 # -- edit_position ---------------------------------------------------------------------------
 def test_edit_position_moves_one_node_to_the_typed_value(doc):
     r = int(free_rows(doc)[0])
-    doc.select([r])
+    doc.selection.select([r])
     before = doc.cell
-    edit = doc.edit_position(1, 0.75)
+    edit = noderules.edit_position(doc.base(), 1, 0.75)
     assert_fresh(edit)
     assert edit.text == "Move 1 node"
     assert edit.state.nodes[r, 1] == pytest.approx(0.75)
@@ -258,10 +299,10 @@ def test_edit_position_moves_one_node_to_the_typed_value(doc):
 
 def test_edit_position_moves_the_centre_of_several_nodes(doc):
     rows = free_rows(doc)[:3]
-    doc.select(rows)
+    doc.selection.select(rows)
     nodes = doc.state.nodes
     centre = nodes[rows, 0].mean()
-    edit = doc.edit_position(0, centre + 0.4)
+    edit = noderules.edit_position(doc.base(), 0, centre + 0.4)
     assert_fresh(edit)
     assert edit.text == "Move 3 nodes"
     assert edit.state.nodes[rows, 0].mean() == pytest.approx(centre + 0.4)
@@ -273,27 +314,29 @@ def test_edit_position_moves_the_centre_of_several_nodes(doc):
 
 
 def test_edit_position_without_a_change_is_none(doc):
-    assert doc.edit_position(0, 1.0) is None  # nothing selected
+    assert noderules.edit_position(doc.base(), 0, 1.0) is None  # nothing selected
     r = int(free_rows(doc)[0])
-    doc.select([r])
-    assert doc.edit_position(0, float("nan")) is None
-    assert doc.edit_position(0, float("inf")) is None
-    assert doc.edit_position(2, float(doc.state.nodes[r, 2])) is None  # where it is
+    doc.selection.select([r])
+    assert noderules.edit_position(doc.base(), 0, float("nan")) is None
+    assert noderules.edit_position(doc.base(), 0, float("inf")) is None
+    assert (
+        noderules.edit_position(doc.base(), 2, float(doc.state.nodes[r, 2])) is None
+    )  # where it is
 
 
 def test_edit_position_starts_from_the_base_nodes(doc):
     r = int(free_rows(doc)[0])
-    doc.select([r])
+    doc.selection.select([r])
     live = doc.state.nodes + 0.01
     doc.live_nodes = live
-    edit = doc.edit_position(0, 2.0)
+    edit = noderules.edit_position(doc.base(), 0, 2.0)
     others = np.setdiff1d(np.arange(27), [r])
     np.testing.assert_allclose(edit.state.nodes[others], live[others])
     assert edit.state.nodes[r, 0] == pytest.approx(2.0)
     np.testing.assert_allclose(edit.state.nodes[r, 1:], live[r, 1:])
     # Preserve off: plain FFD, the free nodes at rest and the live nodes ignored.
     doc.preserve = False
-    edit = doc.edit_position(0, 2.0)
+    edit = noderules.edit_position(doc.base(), 0, 2.0)
     st = doc.state
     rest = st.lattice.rest_nodes
     free = np.setdiff1d(free_rows(doc), [r])
@@ -305,117 +348,117 @@ def test_edit_position_starts_from_the_base_nodes(doc):
 # -- edit_pins and edit_toggle_pin -------------------------------------------------------------
 def test_edit_pins_pins_and_unpins(doc):
     free = free_rows(doc)[:2]
-    edit = doc.edit_pins(free, True)
+    edit = noderules.edit_pins(doc.base(), free, True)
     assert_fresh(edit)
     assert edit.text == "Pin 2 nodes"
     assert np.flatnonzero(edit.state.pinned).tolist() == free.tolist()
     np.testing.assert_array_equal(edit.state.moved, doc.state.moved)
     commit(doc, edit)
-    assert doc.edit_pins(free, True) is None  # pinned already
-    assert doc.edit_pins(free[:1], True) is None
+    assert noderules.edit_pins(doc.base(), free, True) is None  # pinned already
+    assert noderules.edit_pins(doc.base(), free[:1], True) is None
 
-    unpin = doc.edit_pins(free[:1], False)
+    unpin = noderules.edit_pins(doc.base(), free[:1], False)
     assert_fresh(unpin)
     assert unpin.text == "Unpin 1 node"
     assert np.flatnonzero(unpin.state.pinned).tolist() == free[1:].tolist()
 
     moved = int(np.flatnonzero(doc.state.moved)[0])
-    unpin_moved = doc.edit_pins([moved], False)
+    unpin_moved = noderules.edit_pins(doc.base(), [moved], False)
     assert unpin_moved.text == "Unpin 1 node"
     assert not unpin_moved.state.moved[moved] and not unpin_moved.state.fixed[moved]
     # The node stays where it was (the solver moves it later).
     np.testing.assert_allclose(unpin_moved.state.nodes[moved], doc.state.nodes[moved])
 
     still_free = free_rows(doc)[:1]
-    assert doc.edit_pins(still_free, False) is None  # not fixed: nothing to unpin
-    assert doc.edit_pins([], True) is None
-    assert doc.edit_pins(np.zeros(0, int), False) is None
+    assert noderules.edit_pins(doc.base(), still_free, False) is None  # not fixed: nothing to unpin
+    assert noderules.edit_pins(doc.base(), [], True) is None
+    assert noderules.edit_pins(doc.base(), np.zeros(0, int), False) is None
 
 
 def test_edit_pins_all_nodes(doc):
-    pin_all = doc.edit_pins(None, True)
+    pin_all = noderules.edit_pins(doc.base(), None, True)
     assert pin_all.text == "Pin all nodes"
     assert pin_all.state.pinned.all()
-    unpin_all = doc.edit_pins(None, False)
+    unpin_all = noderules.edit_pins(doc.base(), None, False)
     assert unpin_all.text == "Unpin all nodes"
     assert not unpin_all.state.fixed.any()
     commit(doc, pin_all)
-    assert doc.edit_pins(None, True) is None
-    assert doc.edit_pins(range(27), True) is None
+    assert noderules.edit_pins(doc.base(), None, True) is None
+    assert noderules.edit_pins(doc.base(), range(27), True) is None
 
 
 def test_edit_pins_start_from_the_base_nodes(doc):
     live = doc.state.nodes + np.linspace(0, 0.02, 81).reshape(27, 3)
     doc.live_nodes = live
-    edit = doc.edit_pins(free_rows(doc)[:1], True)
+    edit = noderules.edit_pins(doc.base(), free_rows(doc)[:1], True)
     np.testing.assert_allclose(edit.state.nodes, live)
     # Preserve off: the plain FFD, free nodes at rest and fixed ones where the user put them.
     doc.preserve = False
     st = doc.state
-    edit = doc.edit_pins(free_rows(doc)[:1], True)
+    edit = noderules.edit_pins(doc.base(), free_rows(doc)[:1], True)
     expect = np.where(st.fixed[:, None], st.nodes, st.lattice.rest_nodes)
     np.testing.assert_allclose(edit.state.nodes, expect)
     assert not np.allclose(edit.state.nodes, live)
 
 
 def test_edit_toggle_pin(doc):
-    assert doc.edit_toggle_pin() is None  # nothing selected
+    assert noderules.edit_toggle_pin(doc.base()) is None  # nothing selected
     free = free_rows(doc)[:2]
-    doc.select(free)
-    edit = doc.edit_toggle_pin()
+    doc.selection.select(free)
+    edit = noderules.edit_toggle_pin(doc.base())
     assert edit.text == "Pin 2 nodes" and edit.state.pinned[free].all()
     commit(doc, edit)
-    assert doc.selection.tolist() == free.tolist()
-    edit = doc.edit_toggle_pin()  # all fixed: unpin
+    assert doc.selection.rows.tolist() == free.tolist()
+    edit = noderules.edit_toggle_pin(doc.base())  # all fixed: unpin
     assert edit.text == "Unpin 2 nodes" and not edit.state.fixed[free].any()
     # Moved nodes count as fixed: toggling unpins them and clears their moved flag.
     moved = np.flatnonzero(doc.state.moved)[:3]
-    doc.select(moved)
-    edit = doc.edit_toggle_pin()
+    doc.selection.select(moved)
+    edit = noderules.edit_toggle_pin(doc.base())
     assert edit.text == "Unpin 3 nodes"
     assert not edit.state.moved[moved].any() and not edit.state.pinned[moved].any()
     # A mixed selection (some free) is pinned; the moved flags stay.
     mixed = np.array([moved[0], free_rows(doc)[-1]])
-    doc.select(mixed)
-    edit = doc.edit_toggle_pin()
+    doc.selection.select(mixed)
+    edit = noderules.edit_toggle_pin(doc.base())
     assert edit.text == "Pin 2 nodes"
     assert edit.state.pinned[mixed].all() and edit.state.moved[moved[0]]
 
 
 # -- edit_target -----------------------------------------------------------------------------
 def test_edit_target(rest):
-    edit = rest.edit_target(90)
+    edit = goalrules.edit_target(rest.base(), 90)
     assert_fresh(edit)
     assert edit.text == "Target volume 90 %"
     assert edit.state.target_ratio == pytest.approx(0.9)
     np.testing.assert_array_equal(edit.state.moved, rest.state.moved)
-    assert rest.edit_target(100) is None  # the same ratio
-    assert rest.edit_target(100.0) is None
+    assert goalrules.edit_target(rest.base(), 100) is None  # the same ratio
+    assert goalrules.edit_target(rest.base(), 100.0) is None
     for bad in (0, -5, float("nan")):
-        assert rest.edit_target(bad) is None
+        assert goalrules.edit_target(rest.base(), bad) is None
     commit(rest, edit)
     assert rest.needs_solve()
-    assert rest.edit_target(90.0) is None
-    back = rest.edit_target(112.5)
+    assert goalrules.edit_target(rest.base(), 90.0) is None
+    back = goalrules.edit_target(rest.base(), 112.5)
     assert back.text == "Target volume 112.5 %"
     assert back.state.target_ratio == pytest.approx(1.125)
 
 
 def test_edit_target_rejects_an_infinite_target(rest):
-    assert rest.edit_target(float("inf")) is None
+    assert goalrules.edit_target(rest.base(), float("inf")) is None
 
 
 def test_edit_target_starts_from_the_base_nodes(doc):
     live = doc.state.nodes * 1.01
     doc.live_nodes = live
-    np.testing.assert_allclose(doc.edit_target(95).state.nodes, live)
+    np.testing.assert_allclose(goalrules.edit_target(doc.base(), 95).state.nodes, live)
 
 
 # -- edit_reset ------------------------------------------------------------------------------
 def test_edit_reset(doc):
     st = doc.state
-    commit(doc, doc.edit_pins(free_rows(doc)[:1], True))
-    edit = doc.edit_reset()
+    commit(doc, noderules.edit_pins(doc.base(), free_rows(doc)[:1], True))
+    edit = noderules.edit_reset(doc.base())
     assert edit.text == "Reset nodes"
     new = edit.state
     np.testing.assert_allclose(new.nodes, st.lattice.rest_nodes)
@@ -423,30 +466,30 @@ def test_edit_reset(doc):
     assert new.solved is True and new.result is None  # at rest with ratio 1: solved
     assert new.problem is st.problem
     commit(doc, edit)
-    assert doc.edit_reset() is None  # at rest already
+    assert noderules.edit_reset(doc.base()) is None  # at rest already
     assert describe_status(doc.state, preserve=True, activity="idle")[0] == "At rest"
 
 
 def test_edit_reset_with_another_target_needs_a_solve(doc):
-    commit(doc, doc.edit_target(80))
-    edit = doc.edit_reset()
+    commit(doc, goalrules.edit_target(doc.base(), 80))
+    edit = noderules.edit_reset(doc.base())
     assert edit.state.solved is False and edit.state.target_ratio == pytest.approx(0.8)
     assert not edit.state.fixed.any()
 
 
 def test_edit_reset_of_pins_alone(rest):
-    assert rest.edit_reset() is None
-    commit(rest, rest.edit_pins([4], True))
-    edit = rest.edit_reset()
+    assert noderules.edit_reset(rest.base()) is None
+    commit(rest, noderules.edit_pins(rest.base(), [4], True))
+    edit = noderules.edit_reset(rest.base())
     assert edit is not None and not edit.state.pinned.any() and edit.state.solved
 
 
 # -- edit_lattice ----------------------------------------------------------------------------
 def test_edit_lattice_builds_a_new_lattice_at_rest(doc):
-    commit(doc, doc.edit_pins(free_rows(doc)[:1], True))
-    commit(doc, doc.edit_target(90))
+    commit(doc, noderules.edit_pins(doc.base(), free_rows(doc)[:1], True))
+    commit(doc, goalrules.edit_target(doc.base(), 90))
     old = doc.problem
-    edit = doc.edit_lattice((4, 3, 2))
+    edit = latticerules.edit_lattice(doc.base(), (4, 3, 2))
     assert edit.text == "Rebuild lattice 4x3x2"
     st = edit.state
     assert st.lattice.shape == (4, 3, 2) and st.problem is not old
@@ -461,26 +504,26 @@ def test_edit_lattice_builds_a_new_lattice_at_rest(doc):
 
 
 def test_edit_lattice_at_ratio_one_is_solved_at_rest(doc):
-    edit = doc.edit_lattice([2, 2, 2])
+    edit = latticerules.edit_lattice(doc.base(), [2, 2, 2])
     assert edit.state.solved is True and edit.state.result is None
     assert edit.state.lattice.shape == (2, 2, 2)
 
 
 def test_edit_lattice_checks_the_shape(doc):
-    assert doc.edit_lattice((3, 3, 3)) is None  # the same shape
+    assert latticerules.edit_lattice(doc.base(), (3, 3, 3)) is None  # the same shape
     for bad in ((1, 3, 3), (3, 11, 3), (3, 3, 0), (3, 3), (3, 3, 3, 3)):
         with pytest.raises(IsochorError, match="2 to 10"):
-            doc.edit_lattice(bad)
-    edit = doc.edit_lattice((10, 2, 10))
+            latticerules.edit_lattice(doc.base(), bad)
+    edit = latticerules.edit_lattice(doc.base(), (10, 2, 10))
     assert edit.state.lattice.shape == (10, 2, 10)
 
 
 def test_edit_lattice_reuses_a_problem_built_before(doc):
-    first = doc.edit_lattice((4, 3, 3))
+    first = latticerules.edit_lattice(doc.base(), (4, 3, 3))
     commit(doc, first)
-    second = doc.edit_lattice((3, 4, 3))
+    second = latticerules.edit_lattice(doc.base(), (3, 4, 3))
     commit(doc, second)
-    again = doc.edit_lattice((4, 3, 3))
+    again = latticerules.edit_lattice(doc.base(), (4, 3, 3))
     assert again.state.problem is first.state.problem
     assert again.state is not first.state
     assert not again.state.moved.any()
@@ -488,8 +531,8 @@ def test_edit_lattice_reuses_a_problem_built_before(doc):
 
 
 def test_edit_lattice_back_to_the_original_shape_is_at_rest(doc):
-    commit(doc, doc.edit_lattice((4, 3, 3)))
-    back = doc.edit_lattice((3, 3, 3))
+    commit(doc, latticerules.edit_lattice(doc.base(), (4, 3, 3)))
+    back = latticerules.edit_lattice(doc.base(), (3, 3, 3))
     st = back.state
     assert st.lattice.shape == (3, 3, 3)
     assert not st.moved.any() and not st.pinned.any()
@@ -500,12 +543,12 @@ def test_edit_lattice_back_to_the_original_shape_is_at_rest(doc):
 def test_every_edit_is_unsolved_without_a_result(doc):
     doc.record_result(doc.cell, None, summary())
     assert doc.state.solved and doc.state.result is not None
-    doc.select(free_rows(doc)[:2])
+    doc.selection.select(free_rows(doc)[:2])
     edits = [
-        doc.edit_position(0, 0.3),
-        doc.edit_pins(None, True),
-        doc.edit_toggle_pin(),
-        doc.edit_target(95),
+        noderules.edit_position(doc.base(), 0, 0.3),
+        noderules.edit_pins(doc.base(), None, True),
+        noderules.edit_toggle_pin(doc.base()),
+        goalrules.edit_target(doc.base(), 95),
     ]
     doc.begin_drag().move([0.1, 0.0, 0.0])
     edits.append(doc.end_drag())
@@ -531,7 +574,7 @@ def test_record_result_on_the_current_cell(doc):
 def test_record_result_on_a_cell_that_is_not_current(doc):
     old = doc.cell
     old_nodes = old.state.nodes
-    commit(doc, doc.edit_target(90))
+    commit(doc, goalrules.edit_target(doc.base(), 90))
     current = doc.state
     events = events_of(doc)
     doc.live_nodes = current.nodes
@@ -583,8 +626,8 @@ def test_an_edit_after_a_converged_solve_shows_no_old_result(doc, torus_result):
     doc.record_result(doc.cell, torus_result.nodes, SolveSummary.of(torus_result, 7))
     assert describe_status(doc.state, preserve=True, activity="idle")[0] == "Converged"
     row = free_rows(doc)[:1]
-    doc.select(row)
-    commit(doc, doc.edit_position(2, 0.2))
+    doc.selection.select(row)
+    commit(doc, noderules.edit_position(doc.base(), 2, 0.2))
     assert doc.state.result is None
     assert describe_status(doc.state, preserve=True, activity="idle") == (
         "Edited",
@@ -599,25 +642,25 @@ def test_an_edit_after_a_converged_solve_shows_no_old_result(doc, torus_result):
 
 # -- set_cell --------------------------------------------------------------------------------
 def test_set_cell_with_a_new_lattice_clears_the_selection(doc):
-    doc.select([1, 2, 26])
+    doc.selection.select([1, 2, 26])
     events = events_of(doc)
     doc.live_nodes = doc.state.nodes
     doc.begin_drag()
-    commit(doc, doc.edit_lattice((2, 2, 2)))
+    commit(doc, latticerules.edit_lattice(doc.base(), (2, 2, 2)))
     assert events == ["scene", "state"]
-    assert doc.selection.tolist() == []
+    assert doc.selection.rows.tolist() == []
     assert doc.drag is None and doc.live_nodes is None
 
 
 def test_set_cell_with_the_same_lattice_keeps_the_selection(doc):
-    doc.select([1, 2, 26])
+    doc.selection.select([1, 2, 26])
     events = events_of(doc)
     doc.live_nodes = doc.state.nodes
     doc.begin_drag()
-    cell = commit(doc, doc.edit_target(90))
+    cell = commit(doc, goalrules.edit_target(doc.base(), 90))
     assert events == ["state"]
     assert doc.cell is cell
-    assert doc.selection.tolist() == [1, 2, 26]
+    assert doc.selection.rows.tolist() == [1, 2, 26]
     assert doc.drag is None and doc.live_nodes is None
 
 
@@ -630,7 +673,7 @@ def test_begin_drag_needs_a_selection(doc):
 
 def test_drag_moves_only_the_dragged_nodes(doc):
     rows = free_rows(doc)[:2]
-    doc.select(rows)
+    doc.selection.select(rows)
     base = doc.base_nodes()
     drag = doc.begin_drag()
     assert doc.drag is drag and drag.before is doc.cell
@@ -658,7 +701,7 @@ def test_drag_moves_only_the_dragged_nodes(doc):
 
 def test_drag_fixed_includes_the_dragged_rows(doc):
     rows = free_rows(doc)[:2]
-    doc.select(rows)
+    doc.selection.select(rows)
     drag = doc.begin_drag()
     fixed = drag.fixed()
     assert fixed.shape == (27, 3), "per coordinate"
@@ -670,7 +713,7 @@ def test_drag_fixed_includes_the_dragged_rows(doc):
 
 def test_end_drag_returns_the_move(doc):
     rows = free_rows(doc)[:2]
-    doc.select(rows)
+    doc.selection.select(rows)
     before = doc.cell
     drag = doc.begin_drag()
     drag.move([0.0, 0.0, 0.25])
@@ -686,7 +729,7 @@ def test_end_drag_returns_the_move(doc):
 
 def test_end_drag_takes_the_free_nodes_from_the_live_solve(doc):
     rows = free_rows(doc)[:1]
-    doc.select(rows)
+    doc.selection.select(rows)
     start_live = doc.state.nodes + 0.01
     doc.live_nodes = start_live
     drag = doc.begin_drag()
@@ -705,7 +748,7 @@ def test_end_drag_takes_the_free_nodes_from_the_live_solve(doc):
 def test_drag_with_preserve_off_is_plain_ffd(doc):
     doc.preserve = False
     rows = free_rows(doc)[:1]
-    doc.select(rows)
+    doc.selection.select(rows)
     doc.live_nodes = doc.state.nodes + 0.5  # ignored without the volume constraint
     st = doc.state
     plain = np.where(st.fixed[:, None], st.nodes, st.lattice.rest_nodes)
@@ -719,7 +762,7 @@ def test_drag_with_preserve_off_is_plain_ffd(doc):
 
 
 def test_cancel_drag(doc):
-    doc.select([4])
+    doc.selection.select([4])
     before = doc.cell
     doc.begin_drag().move([1.0, 1.0, 1.0])
     doc.cancel_drag()
@@ -827,10 +870,12 @@ def test_describe_status_for_each_activity(doc, rest):
 def edited_torus(doc: Document) -> Document:
     """The torus with a typed move, a pin on a free node, a pin on a moved node, target 95 %."""
     free = free_rows(doc)
-    doc.select(free[:1])
-    commit(doc, doc.edit_position(0, 0.5))
-    commit(doc, doc.edit_pins([free[1], 0], True))  # node 0 is moved (and now pinned too)
-    commit(doc, doc.edit_target(95))
+    doc.selection.select(free[:1])
+    commit(doc, noderules.edit_position(doc.base(), 0, 0.5))
+    commit(
+        doc, noderules.edit_pins(doc.base(), [free[1], 0], True)
+    )  # node 0 is moved (and now pinned too)
+    commit(doc, goalrules.edit_target(doc.base(), 95))
     return doc
 
 
@@ -935,8 +980,8 @@ def test_export_never_replaces_the_model_it_was_made_from(tmp_path):
     before = path.read_bytes()
     os.symlink(path, tmp_path / "link.obj")
     d = Document.open(path)
-    d.select([0])
-    commit(d, d.edit_position(0, -3.0))
+    d.selection.select([0])
+    commit(d, noderules.edit_position(d.base(), 0, -3.0))
     for target in (path, tmp_path / "link.obj", tmp_path / "." / "model.obj"):
         with pytest.raises(IsochorError, match="would overwrite the model"):
             d.export(target)
@@ -958,8 +1003,8 @@ def test_model_paths_keep_symbolic_links(tmp_path):
     assert model == os.path.abspath(link / "model.obj")
     assert "real_folder" not in model
 
-    d.select([0])
-    commit(d, d.edit_position(0, -3.0))
+    d.selection.select([0])
+    commit(d, noderules.edit_position(d.base(), 0, -3.0))
     d.save(link / "scene.json")
     assert d.path == Path(os.path.abspath(link / "scene.json"))
     saved = json.loads((real / "scene.json").read_text(encoding="utf-8"))
@@ -1004,12 +1049,14 @@ def test_export_writes_the_deformed_mesh(rest, tmp_path):
 def test_the_document_runs_without_qt():
     """A whole edit session in a fresh interpreter imports neither Qt nor VTK."""
     code = (
+        "from isochor.app.editor import goalrules, handlerules, latticerules, noderules\n"
+        "from isochor.app.editor import selection, timelinerules\n"
         "from isochor.app.editor.document import Document, StateCell, describe_status\n"
         "from isochor.core.scenario.document import Scenario\n"
         "from isochor.core.scenario.problem import build\n"
         f"d = Document(build(Scenario.from_dict({SPHERE!r})))\n"
-        "d.select([0, 1])\n"
-        "d.set_cell(StateCell(d.edit_position(0, -2.0).state))\n"
+        "d.selection.select([0, 1])\n"
+        "d.set_cell(StateCell(noderules.edit_position(d.base(), 0, -2.0).state))\n"
         "d.begin_drag().move([0.1, 0, 0])\n"
         "d.set_cell(StateCell(d.end_drag().state))\n"
         "print(describe_status(d.state, preserve=True, activity='idle')[0])\n"
@@ -1076,7 +1123,7 @@ def test_a_plain_state_has_the_default_goal(doc):
 def test_each_goal_setting_is_an_undoable_edit_with_words(doc, rule, value, setting, new, words):
     before = doc.cell
     old = getattr(doc.state, setting)
-    edit = getattr(doc, rule)(value)
+    edit = getattr(goalrules, rule)(doc.base(), value)
     assert_fresh(edit)
     assert edit.text == words
     assert getattr(edit.state, setting) == new and getattr(edit.state.goal, setting) == new
@@ -1084,35 +1131,37 @@ def test_each_goal_setting_is_an_undoable_edit_with_words(doc, rule, value, sett
     assert not edit.state.same_edit(doc.state), "a setting makes another edit"
     after = commit(doc, edit)
     assert doc.needs_solve()
-    assert getattr(doc, rule)(value) is None, "the same value again: nothing to do"
+    assert getattr(goalrules, rule)(doc.base(), value) is None, (
+        "the same value again: nothing to do"
+    )
     doc.set_cell(before)  # undo
     assert getattr(doc.state, setting) == old
     doc.set_cell(after)  # redo
     assert getattr(doc.state, setting) == new
     back = {"edit_anchor": True, "edit_preserve": "total"}.get(rule, not value)
-    assert getattr(doc, rule)(back).text != words  # the words of the way back
+    assert getattr(goalrules, rule)(doc.base(), back).text != words  # the words of the way back
 
 
 def test_goal_settings_refuse_unknown_values(doc):
     with pytest.raises(IsochorError, match="preserve"):
-        doc.edit_preserve("each")
+        goalrules.edit_preserve(doc.base(), "each")
     with pytest.raises(IsochorError, match="anchor"):
-        doc.edit_setting("anchor", "middle")
+        goalrules.edit_setting(doc.base(), "anchor", "middle")
     with pytest.raises(ValueError, match="unknown goal setting"):
-        doc.edit_setting("target_ratio", 0.5)
+        goalrules.edit_setting(doc.base(), "target_ratio", 0.5)
 
 
 def test_edit_target_beyond_the_reachable_range_says_so(rest):
     with pytest.raises(IsochorError, match=r"0\.05\.\.20"):
-        rest.edit_target(2)
+        goalrules.edit_target(rest.base(), 2)
     with pytest.raises(IsochorError, match=r"0\.05\.\.20"):
-        rest.edit_target(2500)
-    assert rest.edit_target(5).state.target_ratio == pytest.approx(0.05)
+        goalrules.edit_target(rest.base(), 2500)
+    assert goalrules.edit_target(rest.base(), 5).state.target_ratio == pytest.approx(0.05)
 
 
 def test_edit_pin_axes_pins_some_axes_only(doc):
     r = int(free_rows(doc)[0])
-    edit = doc.edit_pin_axes([r], "z")
+    edit = goalrules.edit_pin_axes(doc.base(), [r], "z")
     assert_fresh(edit)
     assert edit.text == "Pin 1 node on z"
     st = edit.state
@@ -1120,52 +1169,56 @@ def test_edit_pin_axes_pins_some_axes_only(doc):
     assert st.pinned[r] and st.axis_pinned[r] and st.fixed[r] and not st.moved[r]
     assert st.fixed_axes[r].tolist() == [False, False, True]
     commit(doc, edit)
-    assert doc.edit_pin_axes([r], "z") is None
-    assert doc.edit_pin_axes([r], "yx").text == "Pin 1 node on x and y"
-    assert doc.edit_pin_axes([r], "xyz").text == "Pin 1 node"
-    unpin = doc.edit_pin_axes([r], "")
+    assert goalrules.edit_pin_axes(doc.base(), [r], "z") is None
+    assert goalrules.edit_pin_axes(doc.base(), [r], "yx").text == "Pin 1 node on x and y"
+    assert goalrules.edit_pin_axes(doc.base(), [r], "xyz").text == "Pin 1 node"
+    unpin = goalrules.edit_pin_axes(doc.base(), [r], "")
     assert unpin.text == "Unpin 1 node" and not unpin.state.fixed[r]
-    assert doc.edit_pin_axes([], "z") is None
+    assert goalrules.edit_pin_axes(doc.base(), [], "z") is None
     with pytest.raises(ValueError, match="xyz"):
-        doc.edit_pin_axes([r], "w")
+        goalrules.edit_pin_axes(doc.base(), [r], "w")
     # P pins every axis of a node pinned on some, and unpins it when all are fixed
-    doc.select([r])
-    assert doc.edit_pins([r], True).state.pin_axes[r].all()
-    assert doc.edit_toggle_pin().text == "Unpin 1 node"
+    doc.selection.select([r])
+    assert noderules.edit_pins(doc.base(), [r], True).state.pin_axes[r].all()
+    assert noderules.edit_toggle_pin(doc.base()).text == "Unpin 1 node"
 
 
 def test_pinning_a_moved_node_on_some_axes_frees_the_others(doc):
     moved = int(np.flatnonzero(doc.state.moved)[0])
-    edit = doc.edit_pin_axes([moved], "z")
+    edit = goalrules.edit_pin_axes(doc.base(), [moved], "z")
     assert edit.text == "Pin 1 node on z"
     assert not edit.state.moved[moved] and edit.state.axis_pinned[moved]
     np.testing.assert_array_equal(edit.state.nodes[moved], doc.state.nodes[moved])
-    assert doc.edit_pin_axes([moved], "xyz") is None, "a moved node is fixed on every axis"
+    assert goalrules.edit_pin_axes(doc.base(), [moved], "xyz") is None, (
+        "a moved node is fixed on every axis"
+    )
 
 
 def test_edit_pin_axis_turns_one_axis_of_the_selection(doc):
     a, b = (int(r) for r in free_rows(doc)[:2])
-    commit(doc, doc.edit_pin_axes([a], "x"))
-    edit = doc.edit_pin_axis([a, b], 2, True)
+    commit(doc, goalrules.edit_pin_axes(doc.base(), [a], "x"))
+    edit = goalrules.edit_pin_axis(doc.base(), [a, b], 2, True)
     assert edit.text == "Pin 2 nodes on z"
     assert edit.state.pin_axes[a].tolist() == [True, False, True]
     assert edit.state.pin_axes[b].tolist() == [False, False, True]
     commit(doc, edit)
-    assert doc.edit_pin_axis([a, b], 2, True) is None
-    free = doc.edit_pin_axis([a], 0, False)
+    assert goalrules.edit_pin_axis(doc.base(), [a, b], 2, True) is None
+    free = goalrules.edit_pin_axis(doc.base(), [a], 0, False)
     assert free.text == "Free 1 node on x" and free.state.pin_axes[a].tolist() == [0, 0, 1]
-    assert doc.edit_pin_axis([b], 1, False) is None, "not pinned on y: nothing to free"
+    assert goalrules.edit_pin_axis(doc.base(), [b], 1, False) is None, (
+        "not pinned on y: nothing to free"
+    )
     moved = int(np.flatnonzero(doc.state.moved)[0])
-    edit = doc.edit_pin_axis([moved], 1, False)
+    edit = goalrules.edit_pin_axis(doc.base(), [moved], 1, False)
     assert edit.text == "Free 1 node on y" and not edit.state.moved[moved]
     assert edit.state.pin_axes[moved].tolist() == [True, False, True]
 
 
 def test_drag_and_plain_ffd_hold_pinned_coordinates_only(doc):
     r = int(free_rows(doc)[0])
-    commit(doc, doc.edit_pin_axes([r], "z"))
+    commit(doc, goalrules.edit_pin_axes(doc.base(), [r], "z"))
     other = int(free_rows(doc)[0])
-    doc.select([other])
+    doc.selection.select([other])
     fixed = doc.begin_drag().fixed()
     assert fixed[r].tolist() == [False, False, True] and fixed[other].all()
     doc.cancel_drag()
@@ -1181,21 +1234,21 @@ def test_held_is_the_far_face_of_a_move_on_a_fresh_lattice(rest):
     lat = rest.state.lattice
     assert rest.held()[1] == "", "nothing moved: nothing held"
     corner = lat.index(2, 2, 2)
-    rest.select([corner])
-    commit(rest, rest.edit_position(0, float(rest.state.nodes[corner, 0]) + 0.3))
+    rest.selection.select([corner])
+    commit(rest, noderules.edit_position(rest.base(), 0, float(rest.state.nodes[corner, 0]) + 0.3))
     mask, face = rest.held()
     assert face == "x min" and mask.sum() == 9
     assert all(lat.ijk(r)[0] == 0 for r in np.flatnonzero(mask))
     # what a drag would hold, before it is solved
-    rest.select([lat.index(0, 0, 0)])
+    rest.selection.select([lat.index(0, 0, 0)])
     drag = rest.begin_drag()
     drag.move([0.0, 0.0, -0.2])
     assert rest.held()[1] == "", "two moved corners: no face is free of them"
     rest.cancel_drag()
     # no anchor, or no volume constraint: nothing held
-    commit(rest, rest.edit_anchor(False))
+    commit(rest, goalrules.edit_anchor(rest.base(), False))
     assert rest.held()[1] == "" and not rest.held()[0].any()
-    rest.set_cell(StateCell(rest.edit_anchor(True).state))
+    rest.set_cell(StateCell(goalrules.edit_anchor(rest.base(), True).state))
     rest.preserve = False
     assert rest.held()[1] == ""
 
@@ -1205,9 +1258,9 @@ def test_a_solve_summary_keeps_what_the_window_shows(rest):
     solved state is what its solve held."""
     lat = rest.state.lattice
     corner = lat.index(2, 2, 2)
-    rest.select([corner])
-    commit(rest, rest.edit_keep_centroid(True))
-    commit(rest, rest.edit_position(0, float(rest.state.nodes[corner, 0]) + 0.3))
+    rest.selection.select([corner])
+    commit(rest, goalrules.edit_keep_centroid(rest.base(), True))
+    commit(rest, noderules.edit_position(rest.base(), 0, float(rest.state.nodes[corner, 0]) + 0.3))
     st = rest.state
     result = run_to_end(
         solve(st.surface, st.nodes, st.fixed_axes, goal=st.goal, options=st.problem.options)
@@ -1274,24 +1327,24 @@ def test_the_sentences_of_the_goal():
 
 
 def test_reset_and_rebuild_keep_the_goal_and_drop_axis_pins(doc):
-    commit(doc, doc.edit_anchor(False))
-    commit(doc, doc.edit_pin_axes(free_rows(doc)[:1], "z"))
-    reset = doc.edit_reset().state
+    commit(doc, goalrules.edit_anchor(doc.base(), False))
+    commit(doc, goalrules.edit_pin_axes(doc.base(), free_rows(doc)[:1], "z"))
+    reset = noderules.edit_reset(doc.base()).state
     assert not reset.pin_axes.any() and reset.anchor == "none"
-    rebuilt = doc.edit_lattice((4, 3, 3)).state
+    rebuilt = latticerules.edit_lattice(doc.base(), (4, 3, 3)).state
     assert not rebuilt.pin_axes.any() and rebuilt.anchor == "none"
     assert rebuilt.problem.scenario.axis_pins == ()
 
 
 def test_save_writes_version_2_with_axis_pins_and_the_goal(doc, tmp_path):
     z_only, xy = (int(r) for r in free_rows(doc)[:2])
-    commit(doc, doc.edit_pin_axes([z_only], "z"))
-    commit(doc, doc.edit_pin_axes([xy], "xy"))
-    commit(doc, doc.edit_pins(free_rows(doc)[:1], True))
-    commit(doc, doc.edit_anchor(False))
-    commit(doc, doc.edit_keep_centroid(True))
-    commit(doc, doc.edit_fold_guard(False))
-    commit(doc, doc.edit_preserve("per-body"))
+    commit(doc, goalrules.edit_pin_axes(doc.base(), [z_only], "z"))
+    commit(doc, goalrules.edit_pin_axes(doc.base(), [xy], "xy"))
+    commit(doc, noderules.edit_pins(doc.base(), free_rows(doc)[:1], True))
+    commit(doc, goalrules.edit_anchor(doc.base(), False))
+    commit(doc, goalrules.edit_keep_centroid(doc.base(), True))
+    commit(doc, goalrules.edit_fold_guard(doc.base(), False))
+    commit(doc, goalrules.edit_preserve(doc.base(), "per-body"))
     lat = doc.state.lattice
     sc = doc.scenario()
     assert sc.version == 2
@@ -1319,7 +1372,7 @@ def test_save_writes_version_2_with_axis_pins_and_the_goal(doc, tmp_path):
 
 def test_save_without_the_new_settings_writes_version_1_and_version_1_opens(doc, tmp_path):
     path = tmp_path / "plain.json"
-    commit(doc, doc.edit_pins(free_rows(doc)[:1], True))
+    commit(doc, noderules.edit_pins(doc.base(), free_rows(doc)[:1], True))
     doc.save(path)
     raw = json.loads(path.read_text())
     assert raw["version"] == 1 and "anchor" not in raw and "preserve" not in raw

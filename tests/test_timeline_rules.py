@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from isochor.app.editor import goalrules, latticerules, noderules, timelinerules
 from isochor.app.editor.document import Document
 from isochor.app.editor.timeline import (
     FrameCache,
@@ -57,42 +58,44 @@ def move_top(doc, dz=-0.4):
     """Move node (1, 1, 2) down by ``dz`` (typed, as the Inspector does)."""
     lat = doc.state.lattice
     row = lat.index(1, 1, 2)
-    doc.select([row])
-    commit(doc, doc.edit_position(2, float(doc.state.nodes[row, 2] + dz)))
+    doc.selection.select([row])
+    commit(doc, noderules.edit_position(doc.base(), 2, float(doc.state.nodes[row, 2] + dz)))
     return row
 
 
 def test_set_replace_and_remove_keys_keep_the_working_edit(doc):
     st0 = doc.state
     assert st0.timeline == TimelineState() and st0.timeline.core() is None
-    edit = commit(doc, doc.edit_set_key(0))
+    edit = commit(doc, timelinerules.edit_set_key(doc.base(), 0))
     assert edit.text == "Set key at frame 0"
     assert doc.state.timeline.key_frames == (0,)
     assert doc.state.solved == st0.solved, "keying leaves the working edit and its solve"
-    assert doc.edit_set_key(0) is None, "the same edit again changes nothing"
+    assert timelinerules.edit_set_key(doc.base(), 0) is None, "the same edit again changes nothing"
     row = move_top(doc)
-    edit = commit(doc, doc.edit_set_key(10))
+    edit = commit(doc, timelinerules.edit_set_key(doc.base(), 10))
     assert edit.text == "Set key at frame 10" and doc.state.timeline.key_frames == (0, 10)
     key = doc.state.timeline.key_at(10)
     assert key.target_ratio == 1.0 and [m.node for m in key.edit.moves] == [(1, 1, 2)]
     assert key.edit.moves[0].to == tuple(doc.state.nodes[row])
     # keying frame 0 again with this edit replaces the key there
-    assert commit(doc, doc.edit_set_key(0)).text == "Replace key at frame 0"
+    assert commit(doc, timelinerules.edit_set_key(doc.base(), 0)).text == "Replace key at frame 0"
     assert same_pose(doc.state.timeline.key_at(0), key, doc.state.lattice)
-    assert commit(doc, doc.edit_remove_key(0)).text == "Remove key at frame 0"
+    assert commit(doc, timelinerules.edit_remove_key(doc.base(), 0)).text == "Remove key at frame 0"
     assert doc.state.timeline.key_frames == (10,)
-    assert doc.edit_remove_key(3) is None
+    assert timelinerules.edit_remove_key(doc.base(), 3) is None
 
 
 def test_go_to_key_loads_its_edit_solved_or_to_solve(doc):
     lat = doc.state.lattice
-    commit(doc, doc.edit_set_key(0))
+    commit(doc, timelinerules.edit_set_key(doc.base(), 0))
     row = move_top(doc)
-    commit(doc, doc.edit_target(95))
-    commit(doc, doc.edit_set_key(12))
-    assert doc.edit_go_to_key(12) is None, "the working edit is key 12's already"
-    assert doc.edit_go_to_key(5) is None, "no key at 5"
-    edit = commit(doc, doc.edit_go_to_key(0))
+    commit(doc, goalrules.edit_target(doc.base(), 95))
+    commit(doc, timelinerules.edit_set_key(doc.base(), 12))
+    assert timelinerules.edit_go_to_key(doc.base(), 12) is None, (
+        "the working edit is key 12's already"
+    )
+    assert timelinerules.edit_go_to_key(doc.base(), 5) is None, "no key at 5"
+    edit = commit(doc, timelinerules.edit_go_to_key(doc.base(), 0))
     assert edit.text == "Go to key 0"
     st = doc.state
     assert not st.moved.any() and st.target_ratio == 1.0
@@ -100,37 +103,42 @@ def test_go_to_key_loads_its_edit_solved_or_to_solve(doc):
     assert st.timeline.key_frames == (0, 12), "the keys stay"
     # with the key's solve known the state is solved with it; without, it is to be solved
     fake = run_to_end(solve_sequence(sequence_problem(doc.state))).keys[1].result
-    solved = doc.edit_go_to_key(12, solved=fake).state
+    solved = timelinerules.edit_go_to_key(doc.base(), 12, solved=fake).state
     assert solved.solved and np.array_equal(solved.nodes, fake.nodes)
     assert solved.moved[row] and solved.target_ratio == 0.95
-    unsolved = doc.edit_go_to_key(12).state
+    unsolved = timelinerules.edit_go_to_key(doc.base(), 12).state
     assert not unsolved.solved and unsolved.moved[row]
     assert np.allclose(unsolved.nodes[row], doc.state.timeline.key_at(12).edit.moves[0].to)
 
 
 def test_range_rate_and_interpolation_are_checked_edits(doc):
-    assert commit(doc, doc.edit_frame_range(-5, 30)).text == "Frame range -5–30"
-    assert doc.edit_frame_range(-5, 30) is None
+    assert (
+        commit(doc, timelinerules.edit_frame_range(doc.base(), -5, 30)).text == "Frame range -5–30"
+    )
+    assert timelinerules.edit_frame_range(doc.base(), -5, 30) is None
     with pytest.raises(IsochorError, match="end"):
-        doc.edit_frame_range(10, 2)
-    assert commit(doc, doc.edit_timeline_setting("rate", 30)).text == "Frame rate 30 fps"
+        timelinerules.edit_frame_range(doc.base(), 10, 2)
+    assert (
+        commit(doc, timelinerules.edit_timeline_setting(doc.base(), "rate", 30)).text
+        == "Frame rate 30 fps"
+    )
     with pytest.raises(IsochorError, match="rate"):
-        doc.edit_timeline_setting("rate", 0)
-    edit = commit(doc, doc.edit_timeline_setting("interpolation", "smooth"))
+        timelinerules.edit_timeline_setting(doc.base(), "rate", 0)
+    edit = commit(doc, timelinerules.edit_timeline_setting(doc.base(), "interpolation", "smooth"))
     assert edit.text == "Interpolation smooth"
     with pytest.raises(IsochorError, match="interpolation"):
-        doc.edit_timeline_setting("interpolation", "cubic")
+        timelinerules.edit_timeline_setting(doc.base(), "interpolation", "cubic")
     tl = doc.state.timeline
     assert (tl.start, tl.end, tl.rate, tl.interpolation) == (-5, 30, 30.0, "smooth")
     assert tl.clamp(-9) == -5 and tl.clamp(99) == 30
 
 
 def test_keys_are_saved_in_the_scenario_and_read_back(doc, tmp_path):
-    commit(doc, doc.edit_set_key(0))
+    commit(doc, timelinerules.edit_set_key(doc.base(), 0))
     move_top(doc)
-    commit(doc, doc.edit_set_key(8))
-    commit(doc, doc.edit_timeline_setting("interpolation", "smooth"))
-    commit(doc, doc.edit_frame_range(0, 16))
+    commit(doc, timelinerules.edit_set_key(doc.base(), 8))
+    commit(doc, timelinerules.edit_timeline_setting(doc.base(), "interpolation", "smooth"))
+    commit(doc, timelinerules.edit_frame_range(doc.base(), 0, 16))
     path = tmp_path / "poses.json"
     doc.save(path)
     sc = Scenario.read(path)
@@ -142,17 +150,17 @@ def test_keys_are_saved_in_the_scenario_and_read_back(doc, tmp_path):
     opened = Document(build(Scenario.from_dict(spec)))
     assert opened.state.timeline.keys[0].target_ratio == 0.9
     # a new lattice drops the keys (they name nodes of the old one) and says so
-    edit = doc.edit_lattice((4, 3, 3))
+    edit = latticerules.edit_lattice(doc.base(), (4, 3, 3))
     assert edit.text == "Rebuild lattice 4x3x3, 2 keys dropped"
     assert edit.state.timeline.keys == () and edit.state.timeline.end == 16
 
 
 def test_a_frame_shows_its_solve_or_the_interpolated_start(doc):
     lat = doc.state.lattice
-    commit(doc, doc.edit_set_key(0))
+    commit(doc, timelinerules.edit_set_key(doc.base(), 0))
     row = move_top(doc, -0.4)
-    commit(doc, doc.edit_set_key(10))
-    commit(doc, doc.edit_frame_range(0, 10))
+    commit(doc, timelinerules.edit_set_key(doc.base(), 10))
+    commit(doc, timelinerules.edit_frame_range(doc.base(), 0, 10))
     st = doc.state
     tl = st.timeline
     rest = lat.rest_nodes
@@ -183,32 +191,32 @@ def test_a_frame_shows_its_solve_or_the_interpolated_start(doc):
 def test_frame_caches_follow_what_the_frames_depend_on(doc):
     caches = FrameCaches(kept=2)
     assert caches.get(doc.state) is None, "no keys, no frames"
-    commit(doc, doc.edit_set_key(0))
+    commit(doc, timelinerules.edit_set_key(doc.base(), 0))
     a = caches.get(doc.state)
     assert a is not None and a.progress() == "Solving keys 0/1"
     move_top(doc)
     assert caches.get(doc.state) is a, "the working edit is not what the frames depend on"
-    commit(doc, doc.edit_set_key(6))
+    commit(doc, timelinerules.edit_set_key(doc.base(), 6))
     b = caches.get(doc.state)
     assert b is not a
-    commit(doc, doc.edit_timeline_setting("rate", 12))
+    commit(doc, timelinerules.edit_timeline_setting(doc.base(), "rate", 12))
     assert caches.get(doc.state) is b, "the rate changes no frame"
-    commit(doc, doc.edit_keep_centroid(True))
+    commit(doc, goalrules.edit_keep_centroid(doc.base(), True))
     c = caches.get(doc.state)
     assert c is not b, "the goal does"
     st = replace(doc.state, keep_centroid=False)
     assert caches.get(st) is b, "a kept cache is found again (undo)"
     assert sequence_signature(st) != sequence_signature(doc.state)
-    commit(doc, doc.edit_timeline_setting("interpolation", "smooth"))
+    commit(doc, timelinerules.edit_timeline_setting(doc.base(), "interpolation", "smooth"))
     caches.get(doc.state)
     assert caches.get(replace(doc.state, keep_centroid=False)) is not b
     assert pose_of(doc.state, 3) == Pose(3, doc.state.timeline.keys[1].edit, 1.0)
 
 
 def test_the_target_eases_between_keys_and_old_caches_go_by_size(doc):
-    commit(doc, doc.edit_set_key(0))
-    commit(doc, doc.edit_target(90))
-    commit(doc, doc.edit_set_key(10))
+    commit(doc, timelinerules.edit_set_key(doc.base(), 0))
+    commit(doc, goalrules.edit_target(doc.base(), 90))
+    commit(doc, timelinerules.edit_set_key(doc.base(), 10))
     tl = doc.state.timeline
     assert frame_target(tl, 5) == pytest.approx(0.95) and frame_target(tl, 20) == 0.9
     smooth = tl.changed(interpolation="smooth")
@@ -218,7 +226,7 @@ def test_the_target_eases_between_keys_and_old_caches_go_by_size(doc):
     caches = FrameCaches(kept=8, nodes=15 * n)
     first = caches.get(doc.state)
     first.frames.update({f: np.zeros((n, 3)) for f in range(11)})
-    commit(doc, doc.edit_frame_range(0, 12))
+    commit(doc, timelinerules.edit_frame_range(doc.base(), 0, 12))
     second = caches.get(doc.state)
     assert second is not first and caches.get(replace(doc.state, timeline=tl)) is first
     second.frames.update({f: np.zeros((n, 3)) for f in range(13)})

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from isochor.app.editor import goalrules, handlerules, noderules
 from isochor.app.editor.document import Document
 from isochor.app.editor.selection import face, faces_containing, layer, line
 from isochor.app.editor.transform import Transform, apply, rotation
@@ -120,7 +121,7 @@ def test_typing_rules():
 def test_a_transform_drag_is_one_edit_with_its_verb(doc):
     lat = doc.state.lattice
     rows = layer(lat, [lat.index(2, 0, 0)], 0)
-    doc.select(rows)
+    doc.selection.select(rows)
     drag = doc.begin_drag("Scale")
     assert drag.text == f"Scale {len(rows)} nodes"
     base = np.array(doc.state.nodes)
@@ -159,17 +160,17 @@ def test_layer_row_face_and_inverse(doc):
     assert name == "x max" and len(rows) == 20
     assert face(lat, [r])[1] == ""
 
-    doc.select([r])
-    assert doc.select_layer(0) and len(doc.selection) == 20
-    doc.select([r])
-    assert doc.select_line(1) and len(doc.selection) == 4
-    assert doc.select_face() == ""  # an inner row is on no face
-    doc.select([corner, lat.index(2, 0, 0)])
-    assert doc.select_face(toward=(0, 0, -1)) == "z min"
-    assert doc.select_inverse() and len(doc.selection) == lat.n_nodes - 12
-    doc.select([])
-    assert not doc.select_layer(0) and not doc.select_line(0)
-    assert doc.select_inverse() and len(doc.selection) == lat.n_nodes
+    doc.selection.select([r])
+    assert doc.selection.layer(0) and len(doc.selection.rows) == 20
+    doc.selection.select([r])
+    assert doc.selection.row(1) and len(doc.selection.rows) == 4
+    assert doc.selection.face() == ""  # an inner row is on no face
+    doc.selection.select([corner, lat.index(2, 0, 0)])
+    assert doc.selection.face(toward=(0, 0, -1)) == "z min"
+    assert doc.selection.inverse() and len(doc.selection.rows) == lat.n_nodes - 12
+    doc.selection.select([])
+    assert not doc.selection.layer(0) and not doc.selection.row(0)
+    assert doc.selection.inverse() and len(doc.selection.rows) == lat.n_nodes
 
 
 # -- picking maths ------------------------------------------------------------------------------
@@ -249,27 +250,31 @@ def test_handle_edits_selection_and_rest_points(doc):
     w = np.array([0.2, 0.3, 0.5])
     at = doc.rest_point(face, w)
     assert np.allclose(at, w @ full.vertices[full.faces[face]])
-    edit = doc.edit_add_handle(at)
+    edit = handlerules.edit_add_handle(doc.base(), at)
     assert edit.text == "Add handle" and not edit.state.solved
     assert np.allclose(edit.state.handles[0].to, at), "at rest, placed where it is"
     commit(doc, edit)
     assert doc.handle_points().shape == (1, 3)
-    doc.select([3])
-    assert doc.select_handle(0) and doc.handle == 0 and len(doc.selection) == 0
-    doc.select([4])
-    assert doc.handle is None, "a node selection replaces the handle's"
-    doc.select_handle(0)
+    doc.selection.select([3])
+    assert (
+        doc.selection.select_handle(0)
+        and doc.selection.handle == 0
+        and len(doc.selection.rows) == 0
+    )
+    doc.selection.select([4])
+    assert doc.selection.handle is None, "a node selection replaces the handle's"
+    doc.selection.select_handle(0)
     with pytest.raises(IndexError):
-        doc.select_handle(5)
-    move = doc.edit_move_handle(0, at + [0.0, 0.0, 0.2])
+        doc.selection.select_handle(5)
+    move = handlerules.edit_move_handle(doc.base(), 0, at + [0.0, 0.0, 0.2])
     assert move.text == "Move handle" and np.allclose(move.state.handles[0].to[2], at[2] + 0.2)
-    assert doc.edit_move_handle(0, doc.state.handles[0].to) is None
+    assert handlerules.edit_move_handle(doc.base(), 0, doc.state.handles[0].to) is None
     commit(doc, move)
-    assert doc.handle == 0, "a handle stays selected across its own edit"
-    remove = doc.edit_remove_handle()
+    assert doc.selection.handle == 0, "a handle stays selected across its own edit"
+    remove = handlerules.edit_remove_handle(doc.base())
     assert remove.text == "Remove handle" and remove.state.handles == ()
     commit(doc, remove)
-    assert doc.handle is None and doc.edit_remove_handle() is None
+    assert doc.selection.handle is None and handlerules.edit_remove_handle(doc.base()) is None
 
 
 def test_a_handle_drag_moves_the_target_only(doc):
@@ -296,8 +301,8 @@ def test_handles_and_symmetry_are_saved_and_read_back(doc, tmp_path):
     from isochor.core.scenario.document import Scenario
 
     at = doc.rest_point(3, [0.5, 0.25, 0.25])
-    commit(doc, doc.edit_add_handle(at, to=at + 0.1))
-    commit(doc, doc.edit_symmetry("z"))
+    commit(doc, handlerules.edit_add_handle(doc.base(), at, to=at + 0.1))
+    commit(doc, goalrules.edit_symmetry(doc.base(), "z"))
     assert doc.state.goal.symmetry == "z"
     path = tmp_path / "handles.json"
     doc.save(path)
@@ -308,7 +313,7 @@ def test_handles_and_symmetry_are_saved_and_read_back(doc, tmp_path):
     assert again.symmetry == "z" and again.handles == doc.state.handles
     assert again.goal == doc.state.goal and not again.solved
     # reset takes the handles away with the moves and pins
-    reset = doc.edit_reset()
+    reset = noderules.edit_reset(doc.base())
     assert reset.state.handles == () and reset.state.symmetry == "z"
 
 
@@ -333,47 +338,50 @@ def test_symmetry_on_mirrors_the_selected_side_and_edits_follow(doc):
 
     lat = doc.state.lattice  # 3 x 4 x 5
     a, b = lat.index(0, 1, 1), lat.index(2, 2, 3)
-    doc.select([a])
-    commit(doc, doc.edit_position(2, float(doc.state.nodes[a, 2]) + 0.3))
-    doc.select([b])
-    commit(doc, doc.edit_pins([b, lat.index(2, 0, 0)], True))
+    doc.selection.select([a])
+    commit(doc, noderules.edit_position(doc.base(), 2, float(doc.state.nodes[a, 2]) + 0.3))
+    doc.selection.select([b])
+    commit(doc, noderules.edit_pins(doc.base(), [b, lat.index(2, 0, 0)], True))
     # with b (high x side) selected, the high side is mirrored: a's move is lost
-    edit = doc.edit_symmetry("x")
+    edit = goalrules.edit_symmetry(doc.base(), "x")
     assert edit.text == "Symmetry across x, the x-max side mirrored"
     st = edit.state
     m = st.mirror
     assert st.symmetry == "x" and m.asymmetry(st.nodes) < 1e-12
     assert st.pinned[b] and st.pinned[m.partner[b]] and not st.moved[a]
     # without a selection, the side with more fixed nodes (two pins against one move)
-    doc.select([])
-    edit = doc.edit_symmetry("x")
+    doc.selection.select([])
+    edit = goalrules.edit_symmetry(doc.base(), "x")
     assert edit.text == "Symmetry across x, the x-max side mirrored"
-    doc.select([a])
-    assert doc.edit_symmetry("x").text == "Symmetry across x, the x-min side mirrored"
-    doc.select([])
+    doc.selection.select([a])
+    assert (
+        goalrules.edit_symmetry(doc.base(), "x").text
+        == "Symmetry across x, the x-min side mirrored"
+    )
+    doc.selection.select([])
     commit(doc, edit)
-    assert doc.edit_symmetry("x") is None
+    assert goalrules.edit_symmetry(doc.base(), "x") is None
     # edits mirror from now on: a move, a pin on one axis, an unpin
-    doc.select([a])
-    move = doc.edit_position(1, float(doc.state.nodes[a, 1]) - 0.2)
+    doc.selection.select([a])
+    move = noderules.edit_position(doc.base(), 1, float(doc.state.nodes[a, 1]) - 0.2)
     assert move.text == "Move 1 node, mirrored"
     assert move.state.moved[m.partner[a]] and m.asymmetry(move.state.nodes) < 1e-12
     commit(doc, move)
-    axis = doc.edit_pin_axes([lat.index(0, 0, 0)], "z")
+    axis = goalrules.edit_pin_axes(doc.base(), [lat.index(0, 0, 0)], "z")
     assert axis.state.pin_axes[m.partner[lat.index(0, 0, 0)]].tolist() == [False, False, True]
-    unpin = doc.edit_pins([m.partner[b]], False)
+    unpin = noderules.edit_pins(doc.base(), [m.partner[b]], False)
     assert not unpin.state.fixed[b] and not unpin.state.fixed[m.partner[b]]
-    assert doc.edit_symmetry("none").text == "Symmetry off"
+    assert goalrules.edit_symmetry(doc.base(), "none").text == "Symmetry off"
     with pytest.raises(IsochorError):
-        doc.edit_symmetry("w")
+        goalrules.edit_symmetry(doc.base(), "w")
 
 
 def test_a_mirrored_drag_keeps_the_plane_and_the_pairs(doc):
     lat = doc.state.lattice
-    commit(doc, doc.edit_symmetry("x"))
+    commit(doc, goalrules.edit_symmetry(doc.base(), "x"))
     m = doc.state.mirror
     side, plane = lat.index(0, 1, 2), lat.index(1, 1, 2)
-    doc.select([side, plane])
+    doc.selection.select([side, plane])
     drag = doc.begin_drag()
     assert sorted(drag.rows) == sorted([side, plane, int(m.partner[side])])
     nodes = drag.move([0.2, 0.1, 0.0])
@@ -384,7 +392,7 @@ def test_a_mirrored_drag_keeps_the_plane_and_the_pairs(doc):
     assert edit.state.moved[m.partner[side]] and m.asymmetry(edit.state.nodes) < 1e-12
     # both partners selected: the first leads, the result is symmetric
     commit(doc, edit)
-    doc.select([side, int(m.partner[side])])
+    doc.selection.select([side, int(m.partner[side])])
     drag = doc.begin_drag("Rotate")
     nodes = drag.move([0.0, 0.0, 0.3])
     assert m.asymmetry(nodes) < 1e-12 and drag.text == "Rotate 2 nodes"
@@ -398,7 +406,7 @@ def test_symmetry_needs_an_axis_aligned_lattice():
     spec["lattice"] = {"nodes": [3, 3, 3], "frame": frame}
     d = Document(build(Scenario.from_dict(spec)))
     with pytest.raises(IsochorError, match="not aligned"):
-        d.edit_symmetry("x")
+        goalrules.edit_symmetry(d.base(), "x")
 
 
 def test_the_held_face_drawn_before_a_solve_is_the_one_it_holds(doc):
@@ -406,8 +414,8 @@ def test_the_held_face_drawn_before_a_solve_is_the_one_it_holds(doc):
     from isochor.core.solve.multilevel import solve
 
     at = doc.rest_point(11, [0.4, 0.3, 0.3])
-    commit(doc, doc.edit_add_handle(at, to=at + [0.0, 0.0, 0.3]))
-    commit(doc, doc.edit_symmetry("y"))
+    commit(doc, handlerules.edit_add_handle(doc.base(), at, to=at + [0.0, 0.0, 0.3]))
+    commit(doc, goalrules.edit_symmetry(doc.base(), "y"))
     st = doc.state
     mask, face = doc.held()
     assert face and mask.any()

@@ -1,4 +1,4 @@
-"""The editor model: the document, its edit rules, the selection and the drag session.
+"""The editor model: the document, its parts (the selection, the drag) and its events.
 
 Qt-free, so every rule is tested headless (``tests/test_document.py``); the window and the
 session controller only call these methods and draw what they return. The states it holds
@@ -9,10 +9,12 @@ cell is shared between the undo command that produced it (its ``after``) and the
 (its ``before``). When a solve started from a cell ends, :meth:`Document.record_result` puts
 the solved state into that cell, so undo and redo land on solved states without solving again.
 
-Edits start from the nodes the user sees (:meth:`Document.base_nodes`): the newest
-intermediate nodes of a running solve, or with "preserve volume" off the plain FFD (free nodes
-at rest). The rules of the goal's settings and of pins on some axes are
-:mod:`isochor.app.editor.goalrules`'.
+Edits are the rules' (:mod:`~isochor.app.editor.noderules`,
+:mod:`~isochor.app.editor.goalrules`, :mod:`~isochor.app.editor.handlerules`,
+:mod:`~isochor.app.editor.timelinerules`, :mod:`~isochor.app.editor.latticerules`): functions
+of :meth:`Document.base`, a snapshot of what an edit starts from. Edits start from the nodes
+the user sees (:meth:`Document.base_nodes`): the newest intermediate nodes of a running
+solve, or with "preserve volume" off the plain FFD (free nodes at rest).
 """
 
 from __future__ import annotations
@@ -26,9 +28,7 @@ import numpy as np
 
 from ...core.errors import IsochorError
 from ...core.export import export_file
-from ...core.goal.constraints import check_ratio
 from ...core.io.formats import READ_FORMATS, SCENARIO_SUFFIXES, is_model, is_scenario, listing
-from ...core.lattice import MAX_NODES, MIN_NODES
 from ...core.mesh import TriMesh
 from ...core.scenario.document import Scenario
 from ...core.scenario.examples import example_scenario
@@ -39,19 +39,21 @@ from ...core.scenario.problem import (
     default_lattice_shape,
     scenario_model,
 )
+from . import goalrules, handlerules
 from .drag import DragSession
-from .goalrules import Edit, GoalRules
-from .handlerules import HandleRules
-from .selection import SelectionRules
+from .edit import Edit, EditBase
+from .handlerules import HandleDrag
+from .problems import ProblemCache
+from .selection import Selection
 from .state import DocState, SolveSummary, StateCell, describe_status, initial_state, plural
 from .timeline import state_edit
-from .timelinerules import TimelineRules
 
 __all__ = [
     "Document",
     "DocState",
     "DragSession",
     "Edit",
+    "EditBase",
     "SolveSummary",
     "StateCell",
     "default_lattice_shape",
@@ -64,7 +66,7 @@ __all__ = [
 Listener = Callable[[str], None]
 
 
-class Document(GoalRules, HandleRules, SelectionRules, TimelineRules):
+class Document:
     """What the editor edits: the current state cell, the selection, the drag, the file.
 
     Events (a listener gets the name): ``"state"`` the current cell changed (an edit, undo,
@@ -73,25 +75,26 @@ class Document(GoalRules, HandleRules, SelectionRules, TimelineRules):
     Attributes
     ----------
     cell : the current :class:`StateCell`
-    selection : (k,) int, the selected node rows, sorted
-    drag : the running :class:`DragSession`, if any
+    selection : the :class:`~isochor.app.editor.selection.Selection`: the selected node rows
+        (``selection.rows``) and handle (``selection.handle``)
+    drag : the running :class:`DragSession` (or handle drag), if any
     preserve : "preserve volume" is on (off: plain FFD, nothing is solved)
     live_nodes : the newest nodes of a running solve (None when idle): the base of edits
+    problems : the problems built for this model, one per lattice
     path : the scenario file this document was read from or saved to, if any
     title : a short name for the window title
     """
 
     def __init__(self, problem: Problem, *, path: Path | None = None, title: str = "") -> None:
         self.cell = StateCell(initial_state(problem))
-        self.selection = np.zeros(0, dtype=int)
-        self.handle: int | None = None  #: the selected handle, if any
-        self.drag: DragSession | None = None
+        self._listeners: list[Listener] = []
+        self.selection = Selection(lambda: self.cell.state, lambda: self._emit("selection"))
+        self.drag: DragSession | HandleDrag | None = None
         self.preserve = True
         self.live_nodes: np.ndarray | None = None
+        self.problems = ProblemCache(problem)
         self.path = path
         self.title = title or _model_title(problem.scenario)
-        self._listeners: list[Listener] = []
-        self._problems: dict[tuple, Problem] = {_key(problem): problem}
 
     # -- constructors ----------------------------------------------------------------------
     @classmethod
@@ -166,13 +169,10 @@ class Document(GoalRules, HandleRules, SelectionRules, TimelineRules):
         self.cell = cell
         self.drag = None
         self.live_nodes = None
-        if cell.state.problem is not old:
-            self.selection = np.zeros(0, dtype=int)
+        new_scene = cell.state.problem is not old
+        self.selection.follow(cell.state, new_scene)
+        if new_scene:
             self._emit("scene")
-        else:
-            self.selection = self.selection[self.selection < cell.state.lattice.n_nodes]
-        if self.handle is not None and self.handle >= len(cell.state.handles):
-            self.handle = None
         self._emit("state")
 
     def needs_solve(self) -> bool:
@@ -203,145 +203,64 @@ class Document(GoalRules, HandleRules, SelectionRules, TimelineRules):
             return np.array(self.live_nodes)
         return self.view_nodes()
 
-    # -- selection -------------------------------------------------------------------------
-    def select(self, rows, mode: str = "replace") -> bool:
-        """Change the selection: ``replace``, ``add``, or ``toggle`` the given rows.
-        Returns True when it changed."""
-        rows = np.unique(np.asarray(list(rows), dtype=int))
-        n = self.state.lattice.n_nodes
-        if len(rows) and (rows.min() < 0 or rows.max() >= n):
-            raise IndexError(f"node rows must lie in [0, {n})")
-        if mode == "add":
-            rows = np.union1d(self.selection, rows)
-        elif mode == "toggle":
-            rows = np.setxor1d(self.selection, rows)
-        elif mode != "replace":
-            raise ValueError(f"unknown selection mode {mode!r}")
-        if np.array_equal(rows, self.selection):
-            return False
-        self.selection = rows.astype(int)
-        if len(rows):
-            self.handle = None  # a node selection replaces a handle's
-        self._emit("selection")
-        return True
-
-    def select_all(self) -> bool:
-        return self.select(range(self.state.lattice.n_nodes))
-
-    # -- edit rules: each returns the Edit to commit, or None when nothing would change ----
-    def edit_position(self, axis: int, value: float) -> Edit | None:
-        """Type a coordinate: the selection (its centre, for several) goes to ``value``."""
-        rows = self.selection
-        if len(rows) == 0 or not np.isfinite(value):
-            return None
-        nodes = self.base_nodes()
-        now = nodes[rows, axis].mean()
-        if abs(value - now) <= 1e-12 * max(1.0, abs(value)):
-            return None
-        nodes[rows, axis] += value - now
-        new = self.state.moved_to(nodes, rows).mirrored(rows)
-        m = self.state.mirror
-        mirrored = ", mirrored" if m is not None and (m.partner[rows] != rows).any() else ""
-        return Edit(new, f"Move {plural(len(rows))}{mirrored}")
-
-    def edit_pins(self, rows, pin: bool) -> Edit | None:
-        """Pin (or unpin) ``rows``; None means every node."""
-        st = self.state
-        rows = np.arange(st.lattice.n_nodes) if rows is None else np.unique(np.asarray(rows, int))
-        if len(rows) == 0:
-            return None
-        changes = (~st.pin_axes[rows].all(axis=1)).any() if pin else st.fixed[rows].any()
-        if not changes:
-            return None
-        new = st.edited(nodes=self.base_nodes()).pinned_as(rows, pin).mirrored(rows)
-        what = "all nodes" if len(rows) == st.lattice.n_nodes else plural(len(rows))
-        return Edit(new, f"{'Pin' if pin else 'Unpin'} {what}")
-
-    def edit_toggle_pin(self) -> Edit | None:
-        """Pin the selection, or unpin it when all of it is fixed already."""
-        rows = self.selection
-        if len(rows) == 0:
-            return None
-        return self.edit_pins(rows, not bool(self.state.fixed[rows].all()))
-
-    def edit_target(self, percent: float) -> Edit | None:
-        """A new target volume, ``percent`` of the original (None: not a positive number
-        or no change). Raises :class:`IsochorError` beyond what a lattice can reach."""
-        ratio = float(percent) / 100.0
-        if not (np.isfinite(ratio) and ratio > 0) or ratio == self.state.target_ratio:
-            return None
-        check_ratio(ratio, "target volume ratio")
-        return Edit(
-            self.state.edited(nodes=self.base_nodes(), target_ratio=ratio),
-            f"Target volume {percent:g} %",
+    def base(self) -> EditBase:
+        """What an edit starts from now: the state, the nodes on screen, the selection and
+        the problems built before (the first argument of every edit rule)."""
+        return EditBase(
+            self.state,
+            self.base_nodes(),
+            self.selection.rows,
+            self.selection.handle,
+            self.problems,
         )
 
-    def edit_reset(self) -> Edit | None:
-        """Every node back to rest, nothing pinned, no handle (at rest there is nothing to
-        solve)."""
-        st = self.state
-        n = st.lattice.n_nodes
-        rest = st.lattice.rest_nodes
-        changed = st.pinned.any() or st.moved.any() or st.handles
-        if not (changed or not np.array_equal(st.nodes, rest)):
-            return None
-        new = st.edited(
-            nodes=rest,
-            pin_axes=np.zeros((n, 3), bool),
-            moved=np.zeros(n, bool),
-            solved=st.target_ratio == 1.0,
-            handles=(),
-        )
-        return Edit(new, "Reset nodes")
+    # -- what is on screen besides the nodes -----------------------------------------------
+    def held(self) -> tuple[np.ndarray, str]:
+        """The nodes the far-side anchor holds for what is on screen, and the face's name
+        (see :func:`isochor.app.editor.goalrules.held`)."""
+        return goalrules.held(self.state, preserve=self.preserve, drag=self.drag)
 
-    def edit_lattice(self, shape) -> Edit | None:
-        """A new lattice of ``shape`` nodes around the same model, at rest.
+    def rest_point(self, face: int, weights) -> np.ndarray:
+        """(3,) the model's rest point at barycentric ``weights`` of full-mesh triangle
+        ``face`` (the triangle and weights of a hit on the mesh as drawn)."""
+        return handlerules.rest_point(self.state, face, weights)
 
-        Moves, pins and the timeline's keys are dropped (they name nodes of the old
-        lattice); the model pyramid is reused, and so is a problem built before for the same
-        shape, with its caches.
-        """
-        shape = tuple(int(s) for s in shape)
-        if len(shape) != 3 or not all(MIN_NODES <= s <= MAX_NODES for s in shape):
-            raise IsochorError(f"A lattice has {MIN_NODES} to {MAX_NODES} nodes per axis.")
-        if shape == tuple(self.state.lattice.shape):
-            return None
-        old = self.problem
-        scenario = old.scenario.with_(
-            lattice_nodes=shape, moves=(), pins=(), axis_pins=(), timeline=None
-        )
-        problem = self._problems.get(_key_of(scenario))
-        if problem is None:
-            problem = build(scenario, model=old.model)
-            self._problems[_key(problem)] = problem
-        ratio = self.state.target_ratio
-        n = problem.surface.lattice.n_nodes
-        # at rest: a cached problem may come from the opened scenario, whose moves and pins
-        # name the nodes of the lattice the user has just left
-        state = DocState(
-            problem,
-            problem.surface.lattice.rest_nodes,
-            np.zeros(n, bool),
-            np.zeros(n, bool),
-            ratio,
-            solved=ratio == 1.0 and not self.state.handles,
-            handles=self.state.handles,
-            timeline=replace(self.state.timeline, keys=()),
-            **self.state.settings(),
-        )
-        keys = len(self.state.timeline.keys)
-        dropped = f", {plural(keys, 'key')} dropped" if keys else ""
-        return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape) + dropped)
+    def handle_points(self, nodes: np.ndarray | None = None, handles=None) -> np.ndarray:
+        """(h, 3) where each handle's point is with ``nodes`` (default: on screen)."""
+        nodes = self.base_nodes() if nodes is None else nodes
+        return handlerules.handle_points(self.state, nodes, handles)
+
+    def mirror_handles(self, handles=None) -> tuple:
+        """The mirror images the solve adds with symmetry on (none with it off)."""
+        return handlerules.mirror_handles(self.state, handles)
 
     # -- the drag --------------------------------------------------------------------------
     def begin_drag(self, verb: str = "Move") -> DragSession | None:
         """Start dragging the selection from the nodes on screen (``verb``: the undo step's
         first word)."""
-        if len(self.selection) == 0:
+        rows = self.selection.rows
+        if len(rows) == 0:
             return None
         mirror = self.state.mirror
-        self.drag = DragSession(self.cell, self.selection, self.base_nodes(), verb, mirror)
-        return self.drag
+        drag = DragSession(self.cell, rows, self.base_nodes(), verb, mirror)
+        self.drag = drag
+        return drag
+
+    def begin_handle_drag(self, index: int | None = None, at=None) -> HandleDrag | None:
+        """Drag handle ``index``'s target, or a new handle on rest point ``at`` (placed where
+        that point is on screen)."""
+        st = self.state
+        base = self.base_nodes()
+        if index is None:
+            if at is None:
+                return None
+            handles = (*st.handles, handlerules.new_handle(st, at, base))
+            index, verb = len(st.handles), "Add handle"
+        else:
+            handles, verb = st.handles, "Move handle"
+        drag = HandleDrag(self.cell, handles, index, base, verb)
+        self.drag = drag
+        return drag
 
     def end_drag(self) -> Edit | None:
         """The edit of the drag (None when no drag runs); the drag is over."""
@@ -388,14 +307,6 @@ class Document(GoalRules, HandleRules, SelectionRules, TimelineRules):
         model file it was made from. Returns the notes for the user."""
         nodes = self.base_nodes() if nodes is None else nodes
         return export_file(self.state.problem, nodes, path)
-
-
-def _key_of(scenario: Scenario) -> tuple:
-    return (tuple(scenario.lattice_nodes), scenario.padding, scenario.frame)
-
-
-def _key(problem: Problem) -> tuple:
-    return _key_of(problem.scenario)
 
 
 def _model_title(scenario: Scenario) -> str:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .goalrules import Edit
+from .edit import Edit
 from .state import StateCell, lead_rows, plural
 from .transform import apply
 

@@ -1,29 +1,44 @@
 """The edit rules of what a solve holds besides the moved nodes (Qt-free).
 
 The goal's settings (hold the far side, keep the centre of mass, preserve each body, the
-fold guard), pins on some axes only, and what the far-side anchor holds for the state on
-screen. :class:`GoalRules` is a part of :class:`~isochor.app.editor.document.Document`: it uses the
-document's ``state``, ``drag``, ``preserve`` and ``base_nodes``. Every rule returns the
-:class:`Edit` to commit (a new state, unsolved, with the words of its undo step), or None
-when nothing would change.
+fold guard, the symmetry, the target volume), pins on some axes only, and what the far-side
+anchor holds for the state on screen. Every rule is a function of an
+:class:`~isochor.app.editor.edit.EditBase` (``Document.base()``) and its own arguments and
+returns the :class:`~isochor.app.editor.edit.Edit` to commit (a new state, unsolved, with the
+words of its undo step), or None when nothing would change.
 """
 
 from __future__ import annotations
 
 import contextlib
-from dataclasses import dataclass
 
 import numpy as np
 
 from ...core.errors import IsochorError
 from ...core.goal.anchor import held_face
-from ...core.goal.constraints import PRESERVE, SYMMETRIES
+from ...core.goal.constraints import PRESERVE, SYMMETRIES, check_ratio
 from ...core.goal.handles import handle_rows
+from .edit import Edit, EditBase
 from .selection import face_name, ijk_table
 from .state import AXES, DocState, axes_words, plural
 
+__all__ = [
+    "SETTING_WORDS",
+    "Edit",
+    "edit_anchor",
+    "edit_fold_guard",
+    "edit_keep_centroid",
+    "edit_pin_axes",
+    "edit_pin_axis",
+    "edit_preserve",
+    "edit_setting",
+    "edit_symmetry",
+    "edit_target",
+    "held",
+]
+
 #: the words of each setting's undo step: setting -> {value: words}
-SETTING_WORDS = {
+SETTING_WORDS: dict[str, dict[object, str]] = {
     "anchor": {"far-side": "Hold far side on", "none": "Hold far side off"},
     "keep_centroid": {True: "Keep centre of mass", False: "Keep centre of mass off"},
     "preserve": {"per-body": "Preserve each body", "total": "Preserve total volume"},
@@ -31,139 +46,149 @@ SETTING_WORDS = {
 }
 
 
-@dataclass(frozen=True)
-class Edit:
-    """A new state and the words of its undo step."""
+# -- the goal's settings ---------------------------------------------------------------------
+def edit_setting(base: EditBase, name: str, value) -> Edit | None:
+    """Set one of the goal's settings (``anchor``, ``keep_centroid``, ``preserve``,
+    ``fold_guard``); the nodes on screen are the start of the solve that follows."""
+    words = SETTING_WORDS.get(name)
+    if words is None:
+        raise ValueError(f"unknown goal setting {name!r}")
+    if value not in words:
+        raise IsochorError(f"{name}: must be one of {', '.join(map(repr, words))}")
+    st = base.state
+    if getattr(st, name) == value:
+        return None
+    return Edit(st.edited(nodes=base.start(), **{name: value}), words[value])
 
-    state: DocState
-    text: str
+
+def edit_anchor(base: EditBase, on: bool) -> Edit | None:
+    """Hold the far side (the lattice face away from the edit) while nothing else holds
+    the lattice in place, or let it move."""
+    return edit_setting(base, "anchor", "far-side" if on else "none")
 
 
-class GoalRules:
-    """The goal's edit rules and the held nodes, mixed into the document."""
+def edit_keep_centroid(base: EditBase, on: bool) -> Edit | None:
+    """Keep the model's centre of mass where it was, or let it move."""
+    return edit_setting(base, "keep_centroid", bool(on))
 
-    # -- the goal's settings ---------------------------------------------------------------
-    def edit_setting(self, name: str, value) -> Edit | None:
-        """Set one of the goal's settings (``anchor``, ``keep_centroid``, ``preserve``,
-        ``fold_guard``); the nodes on screen are the start of the solve that follows."""
-        words = SETTING_WORDS.get(name)
-        if words is None:
-            raise ValueError(f"unknown goal setting {name!r}")
-        if value not in words:
-            raise IsochorError(f"{name}: must be one of {', '.join(map(repr, words))}")
-        st = self.state
-        if getattr(st, name) == value:
-            return None
-        return Edit(st.edited(nodes=self.base_nodes(), **{name: value}), words[value])
 
-    def edit_anchor(self, on: bool) -> Edit | None:
-        """Hold the far side (the lattice face away from the edit) while nothing else holds
-        the lattice in place, or let it move."""
-        return self.edit_setting("anchor", "far-side" if on else "none")
+def edit_preserve(base: EditBase, mode: str) -> Edit | None:
+    """``"total"``: one volume; ``"per-body"``: each body keeps its own."""
+    if mode not in PRESERVE:
+        raise IsochorError(f"preserve: must be one of {', '.join(PRESERVE)}")
+    return edit_setting(base, "preserve", mode)
 
-    def edit_keep_centroid(self, on: bool) -> Edit | None:
-        return self.edit_setting("keep_centroid", bool(on))
 
-    def edit_preserve(self, mode: str) -> Edit | None:
-        """``"total"``: one volume; ``"per-body"``: each body keeps its own."""
-        if mode not in PRESERVE:
-            raise IsochorError(f"preserve: must be one of {', '.join(PRESERVE)}")
-        return self.edit_setting("preserve", mode)
+def edit_fold_guard(base: EditBase, on: bool) -> Edit | None:
+    """Keep the model from turning inside out, or let the solve fold it."""
+    return edit_setting(base, "fold_guard", bool(on))
 
-    def edit_fold_guard(self, on: bool) -> Edit | None:
-        return self.edit_setting("fold_guard", bool(on))
 
-    # -- symmetry ------------------------------------------------------------------------
-    def edit_symmetry(self, symmetry: str) -> Edit | None:
-        """Mirror every edit across the lattice's mid-plane normal to ``symmetry`` ("x",
-        "y" or "z"), or stop ("none").
+def edit_target(base: EditBase, percent: float) -> Edit | None:
+    """A new target volume, ``percent`` of the original (None: not a positive number or
+    no change). Raises :class:`IsochorError` beyond what a lattice can reach."""
+    ratio = float(percent) / 100.0
+    st = base.state
+    if not (np.isfinite(ratio) and ratio > 0) or ratio == st.target_ratio:
+        return None
+    check_ratio(ratio, "target volume ratio")
+    return Edit(st.edited(nodes=base.start(), target_ratio=ratio), f"Target volume {percent:g} %")
 
-        Turning it on makes the edit symmetric at once, as an artist mirroring a model
-        expects: one side's places, pins and moves are copied onto the other side (the side
-        of the selection; without one the side with more fixed nodes, else the low side),
-        and the undo step says which. Raises :class:`IsochorError` for a lattice frame that
-        is not aligned with x, y and z."""
-        if symmetry not in SYMMETRIES:
-            raise IsochorError(f"symmetry: must be one of {', '.join(SYMMETRIES)}")
-        st = self.state
-        if symmetry == st.symmetry:
-            return None
-        new = st.edited(nodes=self.base_nodes(), symmetry=symmetry)
-        m = new.mirror
-        if m is None:
-            return Edit(new, "Symmetry off")
-        rows, side = self._symmetry_side(new, m)
-        mirrored = new.mirrored(rows)
-        words = f"Symmetry across {symmetry}"
-        if not mirrored.same_edit(new):
-            words += f", the {side} side mirrored"
-        return Edit(mirrored, words)
 
-    def _symmetry_side(self, st: DocState, m) -> tuple[np.ndarray, str]:
-        """The half of the lattice to mirror onto the other, and its face's name."""
-        index = ijk_table(st.lattice)[:, m.axis]
-        middle = (st.lattice.shape[m.axis] - 1) / 2
-        halves = (np.flatnonzero(index < middle), np.flatnonzero(index > middle))
-        sel = self.selection
-        votes = [int(np.isin(sel, h).sum()) for h in halves]
-        if votes[0] == votes[1]:
-            votes = [int(st.fixed[h].sum()) for h in halves]
-        high = votes[1] > votes[0]
-        return halves[int(high)], face_name(m.axis, high).replace(" ", "-")
+# -- symmetry --------------------------------------------------------------------------------
+def edit_symmetry(base: EditBase, symmetry: str) -> Edit | None:
+    """Mirror every edit across the lattice's mid-plane normal to ``symmetry`` ("x", "y" or
+    "z"), or stop ("none").
 
-    # -- pins on some axes ---------------------------------------------------------------
-    def edit_pin_axes(self, rows, axes: str) -> Edit | None:
-        """Pin ``rows`` on exactly ``axes`` (some of ``"xyz"``; ``""`` unpins them): a node
-        pinned on z keeps its z, the solver moves it in x and y. A moved node pinned on
-        fewer than three axes is free on the others."""
-        if set(axes) - set(AXES):
-            raise ValueError(f"axes must be some of 'xyz', got {axes!r}")
-        rows = np.unique(np.asarray(rows, dtype=int))
-        mask = np.array([a in axes for a in AXES])
-        st = self.state
-        if len(rows) == 0 or np.all(st.fixed_axes[rows] == mask):
-            return None
-        new = st.edited(nodes=self.base_nodes()).pinned_on(rows, mask).mirrored(rows)
-        if not mask.any():
-            return Edit(new, f"Unpin {plural(len(rows))}")
-        if mask.all():
-            return Edit(new, f"Pin {plural(len(rows))}")
-        return Edit(new, f"Pin {plural(len(rows))} on {axes_words(mask)}")
+    Turning it on makes the edit symmetric at once, as an artist mirroring a model expects:
+    one side's places, pins and moves are copied onto the other side (the side of the
+    selection; without one the side with more fixed nodes, else the low side), and the
+    undo step says which. Raises :class:`IsochorError` for a lattice frame that is not
+    aligned with x, y and z."""
+    if symmetry not in SYMMETRIES:
+        raise IsochorError(f"symmetry: must be one of {', '.join(SYMMETRIES)}")
+    st = base.state
+    if symmetry == st.symmetry:
+        return None
+    new = st.edited(nodes=base.start(), symmetry=symmetry)
+    m = new.mirror
+    if m is None:
+        return Edit(new, "Symmetry off")
+    rows, side = _symmetry_side(new, m, base.rows)
+    mirrored = new.mirrored(rows)
+    words = f"Symmetry across {symmetry}"
+    if not mirrored.same_edit(new):
+        words += f", the {side} side mirrored"
+    return Edit(mirrored, words)
 
-    def edit_pin_axis(self, rows, axis: int, on: bool) -> Edit | None:
-        """Pin (or free) one axis of ``rows``, keeping their other axes as they are."""
-        rows = np.unique(np.asarray(rows, dtype=int))
-        st = self.state
-        current = st.fixed_axes[rows, axis]
-        if len(rows) == 0 or (current.all() if on else not current.any()):
-            return None
-        mask = st.fixed_axes[rows].copy()
-        mask[:, axis] = on
-        new = st.edited(nodes=self.base_nodes()).pinned_on(rows, mask).mirrored(rows)
-        verb = "Pin" if on else "Free"
-        return Edit(new, f"{verb} {plural(len(rows))} on {AXES[axis]}")
 
-    # -- what the far-side anchor holds --------------------------------------------------
-    def held(self) -> tuple[np.ndarray, str]:
-        """The nodes the far-side anchor holds for what is on screen, and the face's name.
+def _symmetry_side(st: DocState, m, selection: np.ndarray) -> tuple[np.ndarray, str]:
+    """The half of the lattice to mirror onto the other, and its face's name."""
+    index = ijk_table(st.lattice)[:, m.axis]
+    middle = (st.lattice.shape[m.axis] - 1) / 2
+    halves = (np.flatnonzero(index < middle), np.flatnonzero(index > middle))
+    votes = [int(np.isin(selection, h).sum()) for h in halves]
+    if votes[0] == votes[1]:
+        votes = [int(st.fixed[h].sum()) for h in halves]
+    high = votes[1] > votes[0]
+    return halves[int(high)], face_name(m.axis, high).replace(" ", "-")
 
-        During a drag: what a solve of the drag would hold; for a solved state: what its
-        solve held; for a state not solved yet: what its solve will hold. Nothing with the
-        volume constraint off (nothing is solved) or the anchor off."""
-        st = self.state
-        n = st.lattice.n_nodes
-        none = np.zeros(n, dtype=bool), ""
-        if not self.preserve or st.anchor != "far-side":
-            return none
-        drag = self.drag
-        if drag is not None:
-            return _held(st, drag.nodes, drag.fixed(), drag.handles)
-        r = st.result
-        if st.solved and r is not None and r.levels:
-            mask = np.zeros(n, dtype=bool)
-            mask[list(r.held)] = True
-            return mask, r.held_face
-        return _held(st, st.nodes, st.fixed_axes, st.handles)
+
+# -- pins on some axes -----------------------------------------------------------------------
+def edit_pin_axes(base: EditBase, rows, axes: str) -> Edit | None:
+    """Pin ``rows`` on exactly ``axes`` (some of ``"xyz"``; ``""`` unpins them): a node
+    pinned on z keeps its z, the solver moves it in x and y. A moved node pinned on fewer
+    than three axes is free on the others."""
+    if set(axes) - set(AXES):
+        raise ValueError(f"axes must be some of 'xyz', got {axes!r}")
+    rows = np.unique(np.asarray(rows, dtype=int))
+    mask = np.array([a in axes for a in AXES])
+    st = base.state
+    if len(rows) == 0 or np.all(st.fixed_axes[rows] == mask):
+        return None
+    new = st.edited(nodes=base.start()).pinned_on(rows, mask).mirrored(rows)
+    if not mask.any():
+        return Edit(new, f"Unpin {plural(len(rows))}")
+    if mask.all():
+        return Edit(new, f"Pin {plural(len(rows))}")
+    return Edit(new, f"Pin {plural(len(rows))} on {axes_words(mask)}")
+
+
+def edit_pin_axis(base: EditBase, rows, axis: int, on: bool) -> Edit | None:
+    """Pin (or free) one axis of ``rows``, keeping their other axes as they are."""
+    rows = np.unique(np.asarray(rows, dtype=int))
+    st = base.state
+    current = st.fixed_axes[rows, axis]
+    if len(rows) == 0 or (current.all() if on else not current.any()):
+        return None
+    mask = st.fixed_axes[rows].copy()
+    mask[:, axis] = on
+    new = st.edited(nodes=base.start()).pinned_on(rows, mask).mirrored(rows)
+    verb = "Pin" if on else "Free"
+    return Edit(new, f"{verb} {plural(len(rows))} on {AXES[axis]}")
+
+
+# -- what the far-side anchor holds ----------------------------------------------------------
+def held(st: DocState, *, preserve: bool, drag=None) -> tuple[np.ndarray, str]:
+    """The nodes the far-side anchor holds for what is on screen, and the face's name.
+
+    ``st`` is the current state, ``preserve`` the document's "preserve volume" switch and
+    ``drag`` its running drag, if any. During a drag: what a solve of the drag would hold;
+    for a solved state: what its solve held; for a state not solved yet: what its solve
+    will hold. Nothing with the volume constraint off (nothing is solved) or the anchor
+    off."""
+    n = st.lattice.n_nodes
+    none = np.zeros(n, dtype=bool), ""
+    if not preserve or st.anchor != "far-side":
+        return none
+    if drag is not None:
+        return _held(st, drag.nodes, drag.fixed(), drag.handles)
+    r = st.result
+    if st.solved and r is not None and r.levels:
+        mask = np.zeros(n, dtype=bool)
+        mask[list(r.held)] = True
+        return mask, r.held_face
+    return _held(st, st.nodes, st.fixed_axes, st.handles)
 
 
 def _held(st: DocState, nodes, fixed, handles) -> tuple[np.ndarray, str]:

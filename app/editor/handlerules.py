@@ -1,16 +1,17 @@
-"""Surface handles in the editor (Qt-free): place, select, move and remove them, and the drag
-of a handle's target.
+"""Surface handles in the editor (Qt-free): place, move and remove them, and the drag of a
+handle's target.
 
 A handle (:class:`isochor.core.goal.handles.Handle`) is a point of the model at rest (``at``)
 and the place it must land (``to``); the solve moves the lattice so that the deformed point
 follows. A click on the model gives a triangle of the full mesh as drawn (deformed) and the
 barycentric weights of the hit point; the same weights on the same triangle of the rest
-mesh give ``at`` (:meth:`HandleRules.rest_point`). With symmetry on, the solve adds each
-handle's mirror image; the document keeps the user's handles only.
+mesh give ``at`` (:func:`rest_point`). With symmetry on, the solve adds each handle's
+mirror image; the document keeps the user's handles only.
 
-:class:`HandleRules` is a part of :class:`~isochor.app.editor.document.Document`: it uses the
-document's ``state``, ``cell``, ``drag``, ``handle``, ``base_nodes``, ``select`` and
-``_emit``.
+The edit rules are functions of an :class:`~isochor.app.editor.edit.EditBase`
+(``Document.base()``) and return the :class:`~isochor.app.editor.edit.Edit` to commit, or
+None; selecting a handle is the selection's (:class:`~isochor.app.editor.selection.Selection`)
+and starting a handle's drag the document's (``Document.begin_handle_drag``).
 """
 
 from __future__ import annotations
@@ -18,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...core.goal.handles import Handle
-from .goalrules import Edit
-from .state import StateCell
+from .edit import Edit, EditBase
+from .state import DocState, StateCell
 
 
 class HandleDrag:
@@ -69,89 +70,68 @@ class HandleDrag:
         return Edit(self.before.state.edited(nodes=nodes, handles=self.handles), self.text)
 
 
-class HandleRules:
-    """Handle edits and the handle selection, mixed into the document."""
+# -- where handles are ------------------------------------------------------------------------
+def rest_point(st: DocState, face: int, weights) -> np.ndarray:
+    """(3,) the model's rest point at barycentric ``weights`` of full-mesh triangle ``face``
+    (the triangle and weights of a hit on the mesh as drawn)."""
+    full = st.surface.full
+    corners = np.asarray(full.vertices)[np.asarray(full.faces)[int(face)]]
+    return np.asarray(weights, dtype=np.float64) @ corners
 
-    # -- where handles are -----------------------------------------------------------------
-    def rest_point(self, face: int, weights) -> np.ndarray:
-        """(3,) the model's rest point at barycentric ``weights`` of full-mesh triangle
-        ``face`` (the triangle and weights of a hit on the mesh as drawn)."""
-        full = self.state.surface.full
-        corners = np.asarray(full.vertices)[np.asarray(full.faces)[int(face)]]
-        return np.asarray(weights, dtype=np.float64) @ corners
 
-    def handle_points(self, nodes: np.ndarray | None = None, handles=None) -> np.ndarray:
-        """(h, 3) where each handle's point is with ``nodes`` (default: on screen)."""
-        handles = self.state.handles if handles is None else handles
-        if not handles:
-            return np.zeros((0, 3))
-        nodes = self.base_nodes() if nodes is None else nodes
-        at = np.array([h.at for h in handles], dtype=np.float64)
-        return np.array(self.state.lattice.deform(at, nodes))
+def handle_points(st: DocState, nodes: np.ndarray, handles=None) -> np.ndarray:
+    """(h, 3) where each handle's point is with ``nodes`` (default handles: ``st``'s)."""
+    handles = st.handles if handles is None else handles
+    if not handles:
+        return np.zeros((0, 3))
+    at = np.array([h.at for h in handles], dtype=np.float64)
+    return np.array(st.lattice.deform(at, nodes))
 
-    def mirror_handles(self, handles=None) -> tuple[Handle, ...]:
-        """The mirror images the solve adds with symmetry on (none with it off)."""
-        handles = self.state.handles if handles is None else handles
-        m = self.state.mirror
-        return () if m is None else tuple(m.handle(h) for h in handles)
 
-    # -- selection -------------------------------------------------------------------------
-    def select_handle(self, index: int | None) -> bool:
-        """Select handle ``index`` (None: no handle); a selected handle deselects the nodes.
-        Returns True when it changed."""
-        if index is not None and not 0 <= index < len(self.state.handles):
-            raise IndexError(f"no handle {index}")
-        if index == self.handle:
-            return False
-        self.handle = index
-        if index is not None and len(self.selection):
-            self.selection = np.zeros(0, dtype=int)
-        self._emit("selection")
-        return True
+def mirror_handles(st: DocState, handles=None) -> tuple[Handle, ...]:
+    """The mirror images the solve adds with symmetry on (none with it off)."""
+    handles = st.handles if handles is None else handles
+    m = st.mirror
+    return () if m is None else tuple(m.handle(h) for h in handles)
 
-    # -- edits -------------------------------------------------------------------------------
-    def edit_add_handle(self, at, to=None) -> Edit:
-        """A new handle on the model's rest point ``at``, to land at ``to`` (default: where
-        the point is on screen, so nothing moves until it is dragged)."""
-        at = np.asarray(at, dtype=np.float64).reshape(3)
-        if to is None:
-            to = self.handle_points(handles=(Handle(at, at),))[0]
-        st = self.state
-        handles = (*st.handles, Handle(at, to))
-        return Edit(st.edited(nodes=self.base_nodes(), handles=handles), "Add handle")
 
-    def edit_move_handle(self, index: int, to) -> Edit | None:
-        st = self.state
-        h = st.handles[index]
-        to = tuple(float(v) for v in np.asarray(to, dtype=np.float64).reshape(3))
-        if to == h.to:
-            return None
-        handles = list(st.handles)
-        handles[index] = h.moved_to(to)
-        return Edit(st.edited(nodes=self.base_nodes(), handles=tuple(handles)), "Move handle")
+def new_handle(st: DocState, at, nodes: np.ndarray) -> Handle:
+    """A handle on the model's rest point ``at``, to land where that point is with
+    ``nodes`` (so nothing moves until it is dragged)."""
+    at = np.asarray(at, dtype=np.float64).reshape(3)
+    return Handle(at, handle_points(st, nodes, (Handle(at, at),))[0])
 
-    def edit_remove_handle(self, index: int | None = None) -> Edit | None:
-        """Remove handle ``index`` (default: the selected one)."""
-        index = self.handle if index is None else index
-        st = self.state
-        if index is None or not 0 <= index < len(st.handles):
-            return None
-        handles = st.handles[:index] + st.handles[index + 1 :]
-        return Edit(st.edited(nodes=self.base_nodes(), handles=handles), "Remove handle")
 
-    # -- the drag of a handle ------------------------------------------------------------------
-    def begin_handle_drag(self, index: int | None = None, at=None) -> HandleDrag | None:
-        """Drag handle ``index``'s target, or a new handle on rest point ``at`` (placed where
-        that point is on screen)."""
-        st = self.state
-        base = self.base_nodes()
-        if index is None:
-            if at is None:
-                return None
-            at = np.asarray(at, dtype=np.float64).reshape(3)
-            to = self.handle_points(base, (Handle(at, at),))[0]
-            handles, index, verb = (*st.handles, Handle(at, to)), len(st.handles), "Add handle"
-        else:
-            handles, verb = st.handles, "Move handle"
-        self.drag = HandleDrag(self.cell, handles, index, base, verb)
-        return self.drag
+# -- edits -----------------------------------------------------------------------------------
+def edit_add_handle(base: EditBase, at, to=None) -> Edit:
+    """A new handle on the model's rest point ``at``, to land at ``to`` (default: where the
+    point is on screen, so nothing moves until it is dragged)."""
+    st = base.state
+    if to is None:
+        handle = new_handle(st, at, base.nodes)
+    else:
+        handle = Handle(np.asarray(at, dtype=np.float64).reshape(3), to)
+    handles = (*st.handles, handle)
+    return Edit(st.edited(nodes=base.start(), handles=handles), "Add handle")
+
+
+def edit_move_handle(base: EditBase, index: int, to) -> Edit | None:
+    """Handle ``index`` to land at ``to`` (None: it does already)."""
+    st = base.state
+    h = st.handles[index]
+    to = tuple(float(v) for v in np.asarray(to, dtype=np.float64).reshape(3))
+    if to == h.to:
+        return None
+    handles = list(st.handles)
+    handles[index] = h.moved_to(to)
+    return Edit(st.edited(nodes=base.start(), handles=tuple(handles)), "Move handle")
+
+
+def edit_remove_handle(base: EditBase, index: int | None = None) -> Edit | None:
+    """Remove handle ``index`` (default: the selected one)."""
+    index = base.handle if index is None else index
+    st = base.state
+    if index is None or not 0 <= index < len(st.handles):
+        return None
+    handles = st.handles[:index] + st.handles[index + 1 :]
+    return Edit(st.edited(nodes=base.start(), handles=handles), "Remove handle")

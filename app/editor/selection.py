@@ -1,15 +1,20 @@
-"""Selection helpers on the lattice (Qt-free): a layer, a row or a face of the lattice from
-the selected nodes, and the inverse of the selection.
+"""The selection (Qt-free): the selected node rows and the selected handle, and the
+lattice's layers, rows and faces through them.
 
 Nodes are addressed ``(i, j, k)``; axis 0, 1, 2 is the lattice's first, second and third
-index (x, y and z for the usual axis-aligned lattice). :class:`SelectionRules` is a part of
-:class:`~isochor.app.editor.document.Document`: it uses the document's ``state``, ``selection``
-and ``select``.
+index (x, y and z for the usual axis-aligned lattice). :class:`Selection` is a part of the
+:class:`~isochor.app.editor.document.Document`: it owns what is selected, reads the
+document's current state through a callable and tells the document's listeners of a change
+through a callback.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
+
+from .state import DocState
 
 AXES = "xyz"
 
@@ -80,31 +85,111 @@ def face(lattice, rows, toward=None) -> tuple[np.ndarray, str]:
     return np.flatnonzero(ijk[:, axis] == index), face_name(axis, side)
 
 
-class SelectionRules:
-    """Selections made from the selection, mixed into the document. Each returns True when
-    the selection changed (nothing changes without a selected node)."""
+class Selection:
+    """The selected node rows and the selected handle of one document.
 
-    def select_layer(self, axis: int) -> bool:
-        """The layers across ``axis`` through the selected nodes."""
-        if len(self.selection) == 0:
+    A node selection and a handle's exclude each other: selecting nodes deselects the
+    handle, selecting a handle deselects the nodes. Every method that selects returns True
+    when the selection changed and then calls ``changed`` (the document tells its listeners
+    ``"selection"``); nothing changes, and nothing is told, otherwise.
+
+    Parameters
+    ----------
+    state : returns the document's current state (the lattice and handles to select from)
+    changed : called after every change
+    """
+
+    def __init__(self, state: Callable[[], DocState], changed: Callable[[], None]) -> None:
+        self._state = state
+        self._changed = changed
+        self.rows = np.zeros(0, dtype=int)  #: (k,) int, the selected node rows, sorted
+        self.handle: int | None = None  #: the selected handle, if any
+
+    # -- nodes ---------------------------------------------------------------------------------
+    def select(self, rows, mode: str = "replace") -> bool:
+        """``replace`` the selection by the given rows, ``add`` them, or ``toggle`` them."""
+        rows = np.unique(np.asarray(list(rows), dtype=int))
+        n = self._state().lattice.n_nodes
+        if len(rows) and (rows.min() < 0 or rows.max() >= n):
+            raise IndexError(f"node rows must lie in [0, {n})")
+        if mode == "add":
+            rows = np.union1d(self.rows, rows)
+        elif mode == "toggle":
+            rows = np.setxor1d(self.rows, rows)
+        elif mode != "replace":
+            raise ValueError(f"unknown selection mode {mode!r}")
+        if np.array_equal(rows, self.rows):
             return False
-        return self.select(layer(self.state.lattice, self.selection, axis))
+        self.rows = rows.astype(int)
+        if len(rows):
+            self.handle = None  # a node selection replaces a handle's
+        self._changed()
+        return True
 
-    def select_line(self, axis: int) -> bool:
+    def add(self, rows) -> bool:
+        """The given rows added to the selection."""
+        return self.select(rows, "add")
+
+    def toggle(self, rows) -> bool:
+        """The given rows selected when they were not, deselected when they were."""
+        return self.select(rows, "toggle")
+
+    def all(self) -> bool:
+        """Every node."""
+        return self.select(range(self._state().lattice.n_nodes))
+
+    def none(self) -> bool:
+        """No node."""
+        return self.select(())
+
+    def inverse(self) -> bool:
+        """Every node that is not selected (no node selected: all of them)."""
+        return self.select(np.setdiff1d(np.arange(self._state().lattice.n_nodes), self.rows))
+
+    # -- from the selected nodes (nothing changes without one) ---------------------------------
+    def layer(self, axis: int) -> bool:
+        """The lattice layers across ``axis`` through the selected nodes."""
+        if len(self.rows) == 0:
+            return False
+        return self.select(layer(self._state().lattice, self.rows, axis))
+
+    def row(self, axis: int) -> bool:
         """The lattice rows along ``axis`` through the selected nodes."""
-        if len(self.selection) == 0:
+        if len(self.rows) == 0:
             return False
-        return self.select(line(self.state.lattice, self.selection, axis))
+        return self.select(line(self._state().lattice, self.rows, axis))
 
-    def select_face(self, toward=None) -> str:
+    def face(self, toward=None) -> str:
         """The lattice face that holds the whole selection (facing ``toward`` when there
         are several): its name, or ``""`` when no face holds it (nothing changes then)."""
-        rows, name = face(self.state.lattice, self.selection, toward)
+        rows, name = face(self._state().lattice, self.rows, toward)
         if name:
             self.select(rows)
         return name
 
-    def select_inverse(self) -> bool:
-        """Every node that is not selected (no node selected: all of them)."""
-        rows = np.setdiff1d(np.arange(self.state.lattice.n_nodes), self.selection)
-        return self.select(rows)
+    # -- the handle ----------------------------------------------------------------------------
+    def select_handle(self, index: int | None) -> bool:
+        """Select handle ``index`` (None: no handle); a selected handle deselects the
+        nodes."""
+        if index is not None and not 0 <= index < len(self._state().handles):
+            raise IndexError(f"no handle {index}")
+        if index == self.handle:
+            return False
+        self.handle = index
+        if index is not None and len(self.rows):
+            self.rows = np.zeros(0, dtype=int)
+        self._changed()
+        return True
+
+    # -- following the document ----------------------------------------------------------------
+    def follow(self, st: DocState, new_scene: bool) -> None:
+        """The document's current state became ``st`` (an edit, undo or redo): drop what it
+        no longer has, all the nodes with a new lattice (``new_scene``). Silent: the
+        document tells its listeners of the new state, and they redraw the selection with
+        it."""
+        if new_scene:
+            self.rows = np.zeros(0, dtype=int)
+        else:
+            self.rows = self.rows[self.rows < st.lattice.n_nodes]
+        if self.handle is not None and self.handle >= len(st.handles):
+            self.handle = None

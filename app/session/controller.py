@@ -33,7 +33,7 @@ from PySide6.QtGui import QUndoStack
 
 from ..editor.document import Document, Edit, SolveSummary, StateCell, describe_status
 from .commands import EditCommand
-from .drag import LIVE_MS, DragMixin
+from .drag import DragHost, SessionDrag
 from .worker import SolveWorker
 
 FRAME_MS = 16  #: the redraw timer: at most one redraw per frame (~60 Hz)
@@ -51,8 +51,14 @@ SWITCH_INTERVAL = 0.0005
 DEFER_MS, DEFER_LIMIT_MS = 3, 150
 
 
-class EditorSession(DragMixin, QObject):
+class EditorSession(QObject):
     """The editing session of one window.
+
+    Composed of parts that own their state: the :class:`SolveWorker` (``worker``), the
+    undo stack (``undo_stack``) and the drags with their live previews (``drags``, a
+    :class:`~isochor.app.session.drag.SessionDrag`, which reaches the session through a
+    :class:`~isochor.app.session.drag.DragHost` only). The drag methods the window calls
+    (:meth:`begin_drag`, :meth:`drag_to`, :meth:`finish_drag`, ...) are the part's.
 
     Signals
     -------
@@ -92,7 +98,6 @@ class EditorSession(DragMixin, QObject):
         self.worker.progress.connect(self._on_progress)
         self.worker.finished.connect(self._on_finished)
         self.worker.failed.connect(self._on_failed)
-        self.live = False  #: solve while dragging
         #: seconds the window took to draw the last frame, whole (deform, shade, render)
         self.frame_cost = 0.0
         #: the window is still drawing the last frame (a big model's full mesh): no idle
@@ -101,7 +106,6 @@ class EditorSession(DragMixin, QObject):
         self._accept_gen: int | None = None  # the only generation whose records count
         self._solving_cell: StateCell | None = None
         self._live_preview = False  # the accepted solve is a live-drag preview
-        self._near_next = False  # the next solve starts from a live drag's last frame
         self.last_solve_near = False  #: the last solve of a state started near (tests)
         self._pending: tuple[np.ndarray, object] | None = None  # the next frame
         self._view_ready = False  # the window drew once: solves may start
@@ -122,10 +126,18 @@ class EditorSession(DragMixin, QObject):
         self.frame_timer.setInterval(FRAME_MS)
         self.frame_timer.timeout.connect(lambda: self._on_frame())
         self.frame_timer.start()
-        self.live_timer = QTimer(self)
-        self.live_timer.setSingleShot(True)
-        self.live_timer.setInterval(LIVE_MS)
-        self.live_timer.timeout.connect(self._live_solve)
+        self.drags = SessionDrag(
+            DragHost(
+                document=lambda: self.document,
+                stop=self._stop,
+                show=self._show,
+                preview=self._preview,
+                commit=self.commit,
+                activity=self._set_activity,
+                told=self.statusChanged.emit,
+            ),
+            self,
+        )
         self.load(document)
 
     # -- the document ------------------------------------------------------------------------
@@ -184,6 +196,56 @@ class EditorSession(DragMixin, QObject):
             self.stateChanged.emit()  # (the window redraws the selection with the state)
             self._solve_if_needed()
 
+    # -- the drags (the part's) ---------------------------------------------------------------
+    @property
+    def live(self) -> bool:
+        """Solve while dragging (live previews)."""
+        return self.drags.live
+
+    @live.setter
+    def live(self, on: bool) -> None:
+        self.drags.live = bool(on)
+
+    def begin_drag(self, verb: str = "Move") -> bool:
+        """Start a drag (or a grab, rotate or scale: ``verb``) of the selection."""
+        return self.drags.begin(verb)
+
+    def begin_handle_drag(self, index: int | None = None, at=None) -> bool:
+        """Start dragging handle ``index``'s target, or a new handle on the rest point
+        ``at``."""
+        return self.drags.begin_handle(index, at)
+
+    def drag_to(self, delta) -> None:
+        """The dragged nodes moved by ``delta`` (3,) from where the drag started."""
+        self.drags.move(delta)
+
+    def drag_transform(self, matrix) -> None:
+        """The dragged nodes mapped by the (4, 4) affine ``matrix`` from where they were."""
+        self.drags.transform(matrix)
+
+    def finish_drag(self) -> None:
+        """The drag ends: its edit becomes one undo step."""
+        self.drags.finish()
+
+    def cancel_drag(self) -> None:
+        """The drag ends without an edit."""
+        self.drags.cancel()
+
+    def drag_text(self, lock: str = "") -> str:
+        """What the view says while a drag runs ("" with none)."""
+        return self.drags.text(lock)
+
+    def _set_activity(self, activity: str) -> None:
+        self.activity = activity
+
+    def _show(self, nodes: np.ndarray) -> None:
+        self._pending = (nodes, None)
+
+    def _preview(self, st, nodes, fixed, handles) -> None:
+        """A live drag's preview solve (solved on a coarse level only; keeps no state)."""
+        self._solving_cell = None
+        self._begin(st, nodes, fixed, handles, live=True)
+
     # -- edits that are not one rule ---------------------------------------------------------
     def set_preserve(self, on: bool) -> None:
         """Turn the volume constraint on or off (off: plain FFD, nothing is solved)."""
@@ -228,10 +290,9 @@ class EditorSession(DragMixin, QObject):
     def _start_solve(self) -> None:
         st = self.document.state
         self._solving_cell = self.document.cell
-        self._live_preview = False
         self.last_solve_input = (np.array(st.nodes), np.array(st.fixed_axes), st.goal)
         # after a live drag the nodes are its last frame: start near them
-        self.last_solve_near, self._near_next = self._near_next, False
+        self.last_solve_near = self.drags.take_near()
         self._begin(st, st.nodes, st.fixed_axes, st.handles, near=self.last_solve_near)
 
     def _begin(self, st, nodes, fixed, handles=(), live: bool = False, near=False) -> None:
@@ -250,7 +311,8 @@ class EditorSession(DragMixin, QObject):
             near=near,
         )
         self._accept_gen = gen
-        if not self._live_preview:
+        self._live_preview = live
+        if not live:
             self.activity = "solving"
         self._idle_owed = False
         self.solveStarted.emit()
@@ -262,7 +324,8 @@ class EditorSession(DragMixin, QObject):
         self.worker.stop()
         self._accept_gen = None
         self._solving_cell = None
-        self.live_timer.stop()
+        self._live_preview = False
+        self.drags.stop_previews()
         if self.activity == "solving":
             self.activity = "idle"
 
@@ -301,6 +364,7 @@ class EditorSession(DragMixin, QObject):
             self.solveDone.emit(gen, True)
             return
         cell, self._solving_cell = self._solving_cell, None
+        assert cell is not None, "an accepted solve that is no preview solves a cell"
         self.activity = "idle"
         summary = SolveSummary.of(result, len(cell.state.surface.levels))
         self.document.record_result(cell, result.nodes, summary)
@@ -380,6 +444,11 @@ class EditorSession(DragMixin, QObject):
                 self.frames_by_generation[gen] = self.frames_by_generation.get(gen, 0) + 1
             self.frameReady.emit(nodes, record)  # drawn and rendered: frame_cost
 
+    @property
+    def frame_pending(self) -> bool:
+        """A frame waits to be handed out (the view has not drawn the newest nodes yet)."""
+        return self._pending is not None
+
     def redraw(self) -> None:
         """Draw the current state again at the next frame (the timeline changed the view)."""
         self._pending = (self.document.base_nodes(), None)
@@ -393,7 +462,6 @@ class EditorSession(DragMixin, QObject):
         """Stop the timers and the worker (waits at most half a second)."""
         self._shut = True
         self.frame_timer.stop()
-        self.live_timer.stop()
         self._stop()
         self.worker.shutdown(timeout=0.5)
 

@@ -41,8 +41,14 @@ from ...core.solve.solver import SolverOptions
 HOLD_LIMIT = 0.25
 
 
-class _Job:
-    """One solve on one thread."""
+class SolveJob:
+    """One solve: the generator ``make()`` makes, iterated by :meth:`run` on a thread of its
+    own (``thread``), its records emitted by the ``worker``'s signals with ``generation``.
+
+    :meth:`run` is the thread's whole body; called on the calling thread instead (a test),
+    it runs the same solve synchronously. :meth:`stop` may come from any thread: nothing is
+    emitted after it returns.
+    """
 
     def __init__(self, worker: SolveWorker, generation: int, make: Callable) -> None:
         self.worker = worker
@@ -109,8 +115,8 @@ class SolveWorker(QObject):
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
         self._generation = 0
-        self._job: _Job | None = None
-        self._stopped: list[_Job] = []
+        self._job: SolveJob | None = None
+        self._stopped: list[SolveJob] = []
         self.gate = threading.Event()  #: set: the solver may step; clear: held
         self.gate.set()
         self._stepping = 0
@@ -209,7 +215,7 @@ class SolveWorker(QObject):
         generation id."""
         self.stop()
         self._generation += 1
-        job = _Job(self, self._generation, make)
+        job = SolveJob(self, self._generation, make)
         self._job = job
         job.thread.start()
         return self._generation

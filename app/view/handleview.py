@@ -5,7 +5,7 @@ plane at its depth (X/Y/Z lock an axis, as for node drags). A mixin of
 :class:`~isochor.app.view.overlays.HandleMarkers`. GUI thread only.
 
 The view only says what the user did (signals); the window turns a hit on the model into the
-model's rest point (:meth:`isochor.app.editor.handlerules.HandleRules.rest_point`) and the session
+model's rest point (:func:`isochor.app.editor.handlerules.rest_point`) and the session
 runs the drag like a node drag.
 """
 

@@ -12,6 +12,7 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QToolBar
 
 from ...core.scenario.examples import EXAMPLES
+from ..editor import goalrules, noderules
 from . import handletools, timelinetools, tools
 
 #: (name, shortcut) of the standard views
@@ -78,7 +79,7 @@ def _build_actions(win) -> None:
     win.act_redo.setShortcuts([K("Ctrl+Shift+Z"), K("Ctrl+Y")])
     win.addAction(win.act_undo)
     win.addAction(win.act_redo)
-    win.act_select_all = A("Select &All Nodes", lambda: win.doc.select_all(), K("Ctrl+A"))
+    win.act_select_all = A("Select &All Nodes", lambda: win.doc.selection.all(), K("Ctrl+A"))
     win.act_pin = A(
         "Toggle &Pin",
         win.toggle_pin,
@@ -89,7 +90,7 @@ def _build_actions(win) -> None:
     win.act_unpin_all = A("Unpin All", lambda: win.set_pins(None, False))
     win.act_reset = A(
         "Reset Nodes",
-        lambda: s.commit(win.doc.edit_reset()),
+        lambda: s.commit(noderules.edit_reset(win.doc.base())),
         tip="Every node back to rest, no pins",
     )
     win.act_box = A(
@@ -154,20 +155,30 @@ def _goal_actions(win) -> None:
 
     doc = lambda: win.doc  # noqa: E731 (the window's document changes when a file opens)
     rules = {
-        "anchor": ("&Hold Far Side", ANCHOR_TIP, True, lambda on: doc().edit_anchor(on)),
+        "anchor": (
+            "&Hold Far Side",
+            ANCHOR_TIP,
+            True,
+            lambda on: goalrules.edit_anchor(doc().base(), on),
+        ),
         "centroid": (
             "&Keep Centre of Mass",
             CENTROID_TIP,
             False,
-            lambda on: doc().edit_keep_centroid(on),
+            lambda on: goalrules.edit_keep_centroid(doc().base(), on),
         ),
         "per_body": (
             "Preserve &Each Body",
             VOLUME_TIP,
             False,
-            lambda on: doc().edit_preserve("per-body" if on else "total"),
+            lambda on: goalrules.edit_preserve(doc().base(), "per-body" if on else "total"),
         ),
-        "fold_guard": ("&Fold Guard", FOLD_TIP, True, lambda on: doc().edit_fold_guard(on)),
+        "fold_guard": (
+            "&Fold Guard",
+            FOLD_TIP,
+            True,
+            lambda on: goalrules.edit_fold_guard(doc().base(), on),
+        ),
     }
     for name, (text, tip, checked, rule) in rules.items():
         a = _action(win, text, checkable=True, checked=checked, tip=tip)

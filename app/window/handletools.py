@@ -12,6 +12,7 @@ from PySide6.QtGui import QKeySequence
 from PySide6.QtWidgets import QMenu
 
 from ...core.errors import IsochorError
+from ..editor import goalrules, handlerules
 from ..editor.handlerules import HandleDrag
 from ..editor.state import handles_note
 from .handlebox import TOOL_TIP
@@ -38,14 +39,14 @@ def build(win, action) -> None:
 
 def connect(win) -> None:
     s, vp, box = win.session, win.viewport, win.panel.handles
-    vp.handleSelected.connect(lambda i: win.doc.select_handle(i))
+    vp.handleSelected.connect(lambda i: win.doc.selection.select_handle(i))
     vp.handlePlaced.connect(lambda face, w: place(win, face, w))
     vp.handleDragStarted.connect(lambda i, face, w: _drag_started(win, i, face, w))
     vp.handleMenuRequested.connect(lambda i, pos: win.exec_menu(handle_menu(win, i), pos))
     s.selectionChanged.connect(lambda: show(win))
     s.solveDone.connect(lambda *_: report(win))
     bind(win.act_handle_tool, box.tool_box)
-    box.handleChosen.connect(lambda i: win.doc.select_handle(i if i >= 0 else None))
+    box.handleChosen.connect(lambda i: win.doc.selection.select_handle(i if i >= 0 else None))
     box.removeClicked.connect(lambda: remove_handle(win))
     win.panel.goal.symmetryChosen.connect(lambda value: set_symmetry(win, value))
 
@@ -53,8 +54,8 @@ def connect(win) -> None:
 def place(win, face: int, weights) -> None:
     """A click on the model: a handle on that point (one undo step), selected."""
     doc = win.doc
-    if win.commit_edit(doc.edit_add_handle(doc.rest_point(face, weights))):
-        doc.select_handle(len(doc.state.handles) - 1)
+    if win.commit_edit(handlerules.edit_add_handle(doc.base(), doc.rest_point(face, weights))):
+        doc.selection.select_handle(len(doc.state.handles) - 1)
         win.statusBar().showMessage(
             "Handle placed: drag it to pull the model there (X/Y/Z lock an axis).", 5000
         )
@@ -71,24 +72,27 @@ def _drag_started(win, index: int, face: int, weights) -> None:
 
 
 def remove_handle(win) -> None:
-    if win.doc.handle is None:
+    if win.doc.selection.handle is None:
         win.statusBar().showMessage("Select a handle first (click its orange marker).", 3000)
         return
-    win.commit_edit(win.doc.edit_remove_handle())
+    win.commit_edit(handlerules.edit_remove_handle(win.doc.base()))
 
 
 def handle_menu(win, index: int) -> QMenu:
     """The right-click menu of handle ``index``."""
-    win.doc.select_handle(index)
+    win.doc.selection.select_handle(index)
     menu = QMenu(win)
-    menu.addAction("Remove handle", lambda: win.commit_edit(win.doc.edit_remove_handle(index)))
+    menu.addAction(
+        "Remove handle",
+        lambda: win.commit_edit(handlerules.edit_remove_handle(win.doc.base(), index)),
+    )
     return menu
 
 
 def set_symmetry(win, value: str) -> None:
     """The symmetry choice: one undo step; the status line says what was mirrored."""
     try:
-        edit = win.doc.edit_symmetry(value)
+        edit = goalrules.edit_symmetry(win.doc.base(), value)
     except IsochorError as exc:
         win.error("Cannot mirror this lattice", str(exc))
         show(win)
@@ -112,7 +116,7 @@ def redraw(win, nodes: np.ndarray | None = None, render: bool = True) -> None:
     every = (*handles, *mirrors)
     targets = np.array([h.to for h in every]).reshape(-1, 3)
     points = doc.handle_points(nodes, every) if every else np.zeros((0, 3))
-    selected = drag.index if isinstance(drag, HandleDrag) else doc.handle
+    selected = drag.index if isinstance(drag, HandleDrag) else doc.selection.handle
     vp.handles.show(targets, points, len(handles), selected)
     if render:
         vp.update()
@@ -123,11 +127,11 @@ def show(win) -> None:
     st = win.state
     r = st.result if st.solved else None
     results = r.handles if r is not None and len(r.handles) == len(st.handles) else None
-    win.panel.handles.show_handles(st.handles, results, win.doc.handle)
+    win.panel.handles.show_handles(st.handles, results, win.doc.selection.handle)
     win.panel.goal.show_symmetry(st.symmetry)
     if win.viewport.scene.built:
         win.viewport.scene.set_mirror(st.mirror)
-    win.act_remove_handle.setEnabled(win.doc.handle is not None)
+    win.act_remove_handle.setEnabled(win.doc.selection.handle is not None)
     redraw(win)
 
 

@@ -20,6 +20,7 @@ from PySide6.QtWidgets import QDockWidget, QMainWindow, QMenu, QMessageBox, QScr
 
 from ... import assets
 from ...core.errors import IsochorError
+from ..editor import goalrules, latticerules, noderules
 from ..editor.document import Document, plural
 from ..session.controller import EditorSession
 from ..view.viewport import Viewport
@@ -137,7 +138,7 @@ class MainWindow(FramesMixin, QMainWindow):
         # solves start after the view's first paint (queued: not from inside the paint)
         vp.firstPainted.connect(s.view_ready, Qt.ConnectionType.QueuedConnection)
         s.undo_stack.cleanChanged.connect(self.update_title)
-        vp.selectRequested.connect(lambda rows, mode: self.doc.select(rows, mode))
+        vp.selectRequested.connect(lambda rows, mode: self.doc.selection.select(rows, mode))
         vp.dragStarted.connect(self._drag_started)
         vp.dragMoved.connect(s.drag_to)
         vp.dragFinished.connect(self._drag_finished)
@@ -153,15 +154,25 @@ class MainWindow(FramesMixin, QMainWindow):
             lambda path: QTimer.singleShot(0, lambda: self.files.open_path(path))
         )
         p.positionEdited.connect(self.type_position)
-        p.pinClicked.connect(lambda on: self.set_pins(self.doc.selection, on))
+        p.pinClicked.connect(lambda on: self.set_pins(self.doc.selection.rows, on))
         p.pinAxisClicked.connect(
-            lambda axis, on: self.commit_edit(self.doc.edit_pin_axis(self.doc.selection, axis, on))
+            lambda axis, on: self.commit_edit(
+                goalrules.edit_pin_axis(self.doc.base(), self.doc.selection.rows, axis, on)
+            )
         )
         g = p.goal
-        g.anchorClicked.connect(lambda on: self.commit_edit(self.doc.edit_anchor(on)))
-        g.centroidClicked.connect(lambda on: self.commit_edit(self.doc.edit_keep_centroid(on)))
-        g.preserveChosen.connect(lambda mode: self.commit_edit(self.doc.edit_preserve(mode)))
-        g.foldGuardClicked.connect(lambda on: self.commit_edit(self.doc.edit_fold_guard(on)))
+        g.anchorClicked.connect(
+            lambda on: self.commit_edit(goalrules.edit_anchor(self.doc.base(), on))
+        )
+        g.centroidClicked.connect(
+            lambda on: self.commit_edit(goalrules.edit_keep_centroid(self.doc.base(), on))
+        )
+        g.preserveChosen.connect(
+            lambda mode: self.commit_edit(goalrules.edit_preserve(self.doc.base(), mode))
+        )
+        g.foldGuardClicked.connect(
+            lambda on: self.commit_edit(goalrules.edit_fold_guard(self.doc.base(), on))
+        )
         p.pin_all.clicked.connect(self.act_pin_all.trigger)
         p.unpin_all.clicked.connect(self.act_unpin_all.trigger)
         p.targetEdited.connect(self.set_target)
@@ -217,7 +228,7 @@ class MainWindow(FramesMixin, QMainWindow):
         self._status_changed()
 
     def _selection_changed(self, repaint: bool = True) -> None:
-        self.viewport.set_selection(self.doc.selection, repaint)
+        self.viewport.set_selection(self.doc.selection.rows, repaint)
         self._show_selection()
 
     def _show_selection(self) -> None:
@@ -225,7 +236,7 @@ class MainWindow(FramesMixin, QMainWindow):
         st = self.state
         self.panel.show_selection(
             st.lattice,
-            self.doc.selection,
+            self.doc.selection.rows,
             self.viewport.nodes,
             st.pin_axes,
             st.moved,
@@ -261,35 +272,35 @@ class MainWindow(FramesMixin, QMainWindow):
         return self.session.commit(edit)
 
     def type_position(self, axis: int, value: float) -> None:
-        self.commit_edit(self.doc.edit_position(axis, value))
+        self.commit_edit(noderules.edit_position(self.doc.base(), axis, value))
 
     def toggle_pin(self) -> None:
-        if len(self.doc.selection) == 0:
+        if len(self.doc.selection.rows) == 0:
             self.statusBar().showMessage("Select nodes to pin first.", 3000)
             return
-        self.commit_edit(self.doc.edit_toggle_pin())
+        self.commit_edit(noderules.edit_toggle_pin(self.doc.base()))
 
     def set_pins(self, rows, pin: bool) -> None:
         """Pin (or unpin) ``rows``; None means every node. One undo step."""
-        self.commit_edit(self.doc.edit_pins(rows, pin))
+        self.commit_edit(noderules.edit_pins(self.doc.base(), rows, pin))
 
     def pin_on(self, axes: str) -> None:
         """Pin the selection on ``axes`` only (one undo step)."""
-        if len(self.doc.selection) == 0:
+        if len(self.doc.selection.rows) == 0:
             self.statusBar().showMessage("Select nodes to pin first.", 3000)
             return
-        self.commit_edit(self.doc.edit_pin_axes(self.doc.selection, axes))
+        self.commit_edit(goalrules.edit_pin_axes(self.doc.base(), self.doc.selection.rows, axes))
 
     def set_target(self, percent: float) -> None:
         try:
-            self.commit_edit(self.doc.edit_target(percent))
+            self.commit_edit(goalrules.edit_target(self.doc.base(), percent))
         except IsochorError as exc:
             self.panel.show_target(self.state.target_ratio * 100)
             self.error("Cannot set the target volume", str(exc))
 
     def rebuild_lattice(self, shape) -> None:
         try:
-            self.commit_edit(self.doc.edit_lattice(shape))
+            self.commit_edit(latticerules.edit_lattice(self.doc.base(), shape))
         except IsochorError as exc:
             self.error("Cannot rebuild the lattice", str(exc))
 
@@ -310,10 +321,10 @@ class MainWindow(FramesMixin, QMainWindow):
 
     def context_menu(self, row: int) -> QMenu:
         """The right-click menu for node ``row`` (-1: empty space): pins and selection."""
-        if row >= 0 and row not in self.doc.selection:
-            self.doc.select([row])
+        if row >= 0 and row not in self.doc.selection.rows:
+            self.doc.selection.select([row])
         menu = QMenu(self)
-        rows = self.doc.selection.copy()
+        rows = self.doc.selection.rows.copy()
         if len(rows):
             fixed = bool(self.state.fixed[rows].all())
             what = plural(len(rows))

@@ -16,6 +16,7 @@ from PySide6.QtGui import QKeySequence
 from PySide6.QtWidgets import QDockWidget, QLabel
 
 from ...core.errors import IsochorError
+from ..editor import timelinerules
 from ..editor.state import StateCell
 from ..editor.timeline import describe, frame_fixed, frame_nodes, frame_target, pose_of, same_pose
 from ..session.commands import GoToKeyCommand
@@ -145,12 +146,18 @@ class TimelineTool(QObject):
         p.frameChosen.connect(self.go_to)
         p.scrubber.frameScrubbed.connect(lambda f: self.go_to(f, scrub=True))
         p.scrubber.scrubReleased.connect(self.go_to)
-        p.rangeEdited.connect(lambda a, b: self._commit(lambda: self.doc.edit_frame_range(a, b)))
+        p.rangeEdited.connect(
+            lambda a, b: self._commit(lambda: timelinerules.edit_frame_range(self.doc.base(), a, b))
+        )
         p.rateEdited.connect(
-            lambda r: self._commit(lambda: self.doc.edit_timeline_setting("rate", r))
+            lambda r: self._commit(
+                lambda: timelinerules.edit_timeline_setting(self.doc.base(), "rate", r)
+            )
         )
         p.interpolationChosen.connect(
-            lambda name: self._commit(lambda: self.doc.edit_timeline_setting("interpolation", name))
+            lambda name: self._commit(
+                lambda: timelinerules.edit_timeline_setting(self.doc.base(), "interpolation", name)
+            )
         )
         self.loaded()
 
@@ -213,7 +220,7 @@ class TimelineTool(QObject):
     def set_key(self) -> None:
         if self.doc.drag is not None:
             return
-        edit = self.doc.edit_set_key(self.frame)
+        edit = timelinerules.edit_set_key(self.doc.base(), self.frame)
         if edit is None:
             self.win.statusBar().showMessage(f"Frame {self.frame} holds this key already.", 4000)
             return
@@ -226,7 +233,7 @@ class TimelineTool(QObject):
     def remove_key(self) -> None:
         if self.doc.drag is not None:
             return
-        edit = self.doc.edit_remove_key(self.frame)
+        edit = timelinerules.edit_remove_key(self.doc.base(), self.frame)
         if edit is None:
             self.win.statusBar().showMessage(f"There is no key at frame {self.frame}.", 4000)
             return
@@ -239,7 +246,7 @@ class TimelineTool(QObject):
         solved = None
         if self.cache is not None and doc.preserve:
             solved = self.cache.keys.get(frame)
-        edit = doc.edit_go_to_key(frame, solved)
+        edit = timelinerules.edit_go_to_key(doc.base(), frame, solved)
         if edit is not None:
             self.win._frame_after_solve = False
             cmd = GoToKeyCommand(doc, edit.text, doc.cell, StateCell(edit.state))

@@ -73,7 +73,7 @@ def show_hint(win, text: str) -> None:
 
 def start_transform(win, mode: str) -> bool:
     """G, R or S: start the gesture at the mouse, or say why not."""
-    if len(win.doc.selection) == 0:
+    if len(win.doc.selection.rows) == 0:
         win.statusBar().showMessage(SELECT_FIRST, 4000)
         return False
     if not win.viewport.start_transform(mode):
@@ -83,7 +83,7 @@ def start_transform(win, mode: str) -> bool:
 
 
 def _selected_or_say(win) -> bool:
-    if len(win.doc.selection) == 0:
+    if len(win.doc.selection.rows) == 0:
         win.statusBar().showMessage("Select a node first.", 3000)
         return False
     return True
@@ -91,12 +91,12 @@ def _selected_or_say(win) -> bool:
 
 def select_layer(win, axis: int) -> None:
     if _selected_or_say(win):
-        win.doc.select_layer(axis)
+        win.doc.selection.layer(axis)
 
 
 def select_line(win, axis: int) -> None:
     if _selected_or_say(win):
-        win.doc.select_line(axis)
+        win.doc.selection.row(axis)
 
 
 def select_face(win) -> None:
@@ -105,8 +105,8 @@ def select_face(win) -> None:
     if not _selected_or_say(win):
         return
     vp = win.viewport
-    centre = vp.nodes[win.doc.selection].mean(axis=0)
-    name = win.doc.select_face(toward=vp._view_vector(centre))
+    centre = vp.nodes[win.doc.selection.rows].mean(axis=0)
+    name = win.doc.selection.face(toward=vp._view_vector(centre))
     if name:
         win.statusBar().showMessage(f"Selected the {name} face of the lattice.", 3000)
     else:
@@ -153,7 +153,7 @@ def build(win, action) -> None:
         lambda: select_face(win),
         tip="Select the lattice face that holds the selected nodes",
     )
-    win.act_invert = action("&Invert Selection", lambda: win.doc.select_inverse(), K("Ctrl+I"))
+    win.act_invert = action("&Invert Selection", lambda: win.doc.selection.inverse(), K("Ctrl+I"))
     win.act_visible_only = action(
         "Select &Visible Only",
         lambda on: setattr(vp, "visible_only", bool(on)),

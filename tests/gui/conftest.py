@@ -57,7 +57,7 @@ def themed_app(qapp):
 def wait_idle(qtbot, win, timeout=60_000):
     """Wait until the window's solve ended and its last frame was drawn."""
     qtbot.waitUntil(lambda: not win.is_solving(), timeout=timeout)
-    qtbot.waitUntil(lambda: win.session._pending is None, timeout=5_000)
+    qtbot.waitUntil(lambda: not win.session.frame_pending, timeout=5_000)
 
 
 def open_window(qtbot, doc=None, size=(1100, 760)):

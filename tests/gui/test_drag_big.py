@@ -23,7 +23,7 @@ pytestmark = pytest.mark.skipif(
 
 def settled(win) -> bool:
     """No solve, no pending frame, and the full mesh on screen."""
-    return not win.is_solving() and win.session._pending is None and win.viewport.showing_full()
+    return not win.is_solving() and not win.session.frame_pending and win.viewport.showing_full()
 
 
 @pytest.fixture

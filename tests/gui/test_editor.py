@@ -272,7 +272,7 @@ def test_closing_mid_solve_of_the_armadillo_returns_within_a_second(qtbot, theme
     win = open_window(qtbot, Document.open(path))
     assert win.state.surface.full.n_faces > 300_000
     wait_idle(qtbot, win)
-    win.doc.select([0])
+    win.doc.selection.select([0])
     node = np.array(win.state.nodes[0])
     win.type_position(0, node[0] - 0.3 * win.state.surface.size)
     assert win.is_solving()

@@ -196,11 +196,13 @@ def test_a_folded_result_is_marked_on_the_model_and_undo_clears_it(qtbot, window
 
     # push the top centre node far below the torus: the lattice turns inside out
     top = lat.index(1, 1, 2)
-    win.doc.select([top])
+    win.doc.selection.select([top])
     z = win.viewport.nodes[top, 2] - 1.5 * lat.size
     type_into(win.panel.coord[2], f"{z:.4f}")
     assert win.undo_stack.undoText() == "Move 1 node"
-    win.doc.select([])  # the selection's gizmo has a red arrow: only the folds are red now
+    win.doc.selection.select(
+        []
+    )  # the selection's gizmo has a red arrow: only the folds are red now
     wait_idle(qtbot, win, timeout=120_000)
 
     r = win.state.result
@@ -277,7 +279,7 @@ def test_a_node_pinned_on_z_keeps_its_z_and_moves_in_x_and_y(qtbot, window, monk
     win = window
     row = pickable_node(win, want_free=True)
     click(win, row)
-    assert list(win.doc.selection) == [row]
+    assert list(win.doc.selection.rows) == [row]
     x_box, y_box, z_box = win.panel.axis_boxes
     click_box(win, z_box)
     st = win.state
@@ -360,7 +362,7 @@ def test_two_bodies_show_their_volumes_and_each_body_keeps_its_own(qtbot, window
     # squash the small sphere's end of the lattice: in total, the bodies trade volume
     lat = win.state.lattice
     end = lat.index(lat.shape[0] - 1, 1, 1)
-    win.doc.select([end])
+    win.doc.selection.select([end])
     type_into(win.panel.coord[0], f"{win.viewport.nodes[end, 0] - 0.8:.4f}")
     wait_idle(qtbot, win)
     bodies = win.state.result.bodies

@@ -131,10 +131,10 @@ def test_handle_tool_place_and_drag_at_once_then_remove(qtbot, sphere, monkeypat
     assert win.state.converged
     # a plain click with the tool adds a second one; clicking the first selects it
     mouse(win, "mouseClick", on_model(win, 30, 30))
-    assert len(win.state.handles) == 2 and win.doc.handle == 1
+    assert len(win.state.handles) == 2 and win.doc.selection.handle == 1
     wait_idle(qtbot, win)
     mouse(win, "mouseClick", handle_xy(win, 0))
-    assert win.doc.handle == 0 and win.panel.handles.list.currentRow() == 0
+    assert win.doc.selection.handle == 0 and win.panel.handles.list.currentRow() == 0
     # Delete removes the selected handle
     QTest.keyClick(vp, Qt.Key.Key_Delete)
     assert len(win.state.handles) == 1 and win.undo_stack.undoText() == "Remove handle"
@@ -212,7 +212,7 @@ def test_a_mirrored_move_gives_a_symmetric_lattice(qtbot, sphere):
 
     # a pin is mirrored too
     other = lat.index(0, 0, 0)
-    win.doc.select([other])
+    win.doc.selection.select([other])
     QTest.keyClick(vp, Qt.Key.Key_P)
     assert win.state.pinned[other] and win.state.pinned[int(mirror.partner[other])]
     undo_key(win)
@@ -233,7 +233,7 @@ def test_scale_gesture_under_symmetry_mirrors_onto_the_partners(qtbot, sphere):
     rows = [lat.index(i, 0, k) for i in range(3) for k in range(3)]  # the y-min layer
     click(win, rows[4])
     win.act_select_layer[1].trigger()
-    assert sorted(win.doc.selection) == sorted(rows)
+    assert sorted(win.doc.selection.rows) == sorted(rows)
     from PySide6.QtTest import QTest
 
     QTest.mouseMove(vp, point((vp.width() * 0.7, vp.height() * 0.3)))

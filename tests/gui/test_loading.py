@@ -9,6 +9,7 @@ import threading
 import numpy as np
 import pytest
 
+from isochor.app.editor import noderules
 from tests.gui.conftest import MODELS, wait_idle
 
 ARMADILLO = MODELS / "armadillo_loop1_346k.ply"
@@ -61,18 +62,24 @@ def _unchanged(win, snap) -> None:
 
 def _edited(qtbot, win) -> None:
     """One undoable move of node 0, solved; the stack marked clean (no prompt to open)."""
-    win.doc.select([0])
+    win.doc.selection.select([0])
     st = win.state
-    win.commit_edit(win.doc.edit_position(0, float(st.nodes[0, 0]) - 0.1 * st.surface.size))
+    win.commit_edit(
+        noderules.edit_position(win.doc.base(), 0, float(st.nodes[0, 0]) - 0.1 * st.surface.size)
+    )
     wait_idle(qtbot, win)
     win.undo_stack.setClean()
 
 
 def _first_record_after_an_edit(qtbot, win, timeout=60_000) -> None:
     st = win.state
-    win.doc.select([0])
+    win.doc.selection.select([0])
     with qtbot.waitSignal(win.session.recordAccepted, timeout=timeout):
-        win.commit_edit(win.doc.edit_position(0, float(st.nodes[0, 0]) - 0.1 * st.surface.size))
+        win.commit_edit(
+            noderules.edit_position(
+                win.doc.base(), 0, float(st.nodes[0, 0]) - 0.1 * st.surface.size
+            )
+        )
 
 
 def _opened(qtbot, win, name, timeout) -> None:
@@ -165,8 +172,8 @@ def test_a_document_edited_during_the_load_is_kept_when_the_user_says_so(
         staticmethod(lambda *a, **k: asked.append(a) or QMessageBox.StandardButton.Cancel),
     )
     assert win.files.open_path(_small_model(), background=True)
-    win.doc.select([0])  # an edit while the model loads
-    win.commit_edit(win.doc.edit_position(0, float(win.state.nodes[0, 0]) + 0.1))
+    win.doc.selection.select([0])  # an edit while the model loads
+    win.commit_edit(noderules.edit_position(win.doc.base(), 0, float(win.state.nodes[0, 0]) + 0.1))
     wait_idle(qtbot, win)
     snap = _snapshot(win)
     slow_read.set()

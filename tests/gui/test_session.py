@@ -127,8 +127,8 @@ def test_status_says_solving_stopped_and_dragging(qtbot, window):
     win = window
     seen = []
     win.session.statusChanged.connect(lambda: seen.append(win.session.status()[0]))
-    win.doc.select([pickable_node(win)])
-    win.type_position(0, float(win.viewport.nodes[win.doc.selection[0], 0]) + 0.2)
+    win.doc.selection.select([pickable_node(win)])
+    win.type_position(0, float(win.viewport.nodes[win.doc.selection.rows[0], 0]) + 0.2)
     assert win.is_solving()
     assert win.st_state.text().endswith("Solving…") and "Solving" in win.panel.solve_state.text()
     win.act_stop.trigger()

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from isochor.app.editor import goalrules
 from tests.gui.conftest import open_window, save_shot, wait_idle
 from tests.gui.test_editor import click, pickable_node, point, screen_positions
 from tests.gui.test_goal_window import drawn, rgb, undo_key
@@ -57,9 +58,9 @@ def layer_x(win, i: int = 2) -> np.ndarray:
     rows = [lat.index(i, j, k) for j in range(3) for k in range(3)]
     row = max((r for r in rows if visible[r]), key=lambda r: -abs(xy[r, 0] - 400))
     click(win, row)
-    assert list(win.doc.selection) == [row]
+    assert list(win.doc.selection.rows) == [row]
     win.act_select_layer[0].trigger()
-    assert sorted(win.doc.selection) == sorted(rows)
+    assert sorted(win.doc.selection.rows) == sorted(rows)
     return np.array(sorted(rows))
 
 
@@ -267,13 +268,13 @@ def test_f_frames_the_selection_and_5_toggles_orthographic(qtbot, sphere):
     vp = win.viewport
     lat = win.state.lattice
     corner = lat.index(2, 0, 2)
-    win.doc.select([corner])
+    win.doc.selection.select([corner])
     distance = vp.camera.distance
     QTest.keyClick(vp, Qt.Key.Key_F)
     xy = vp.projection().project(vp.nodes[corner])[0][0]
     assert np.hypot(*(xy - (vp.width() / 2, vp.height() / 2))) < 3, "the node is in the middle"
     assert vp.camera.distance < 0.7 * distance, "and closer"
-    win.doc.select([])
+    win.doc.selection.select([])
     QTest.keyClick(vp, Qt.Key.Key_F)  # nothing selected: the whole model
     xy, _, visible = vp.projection().project(vp.nodes)
     assert visible.all() and (xy >= 0).all() and (xy[:, 0] <= vp.width()).all()
@@ -286,7 +287,7 @@ def test_f_frames_the_selection_and_5_toggles_orthographic(qtbot, sphere):
     assert vp.renderer.GetActiveCamera().GetParallelProjection()
     row = pickable_node(win, want_free=True)
     click(win, row)
-    assert list(win.doc.selection) == [row], "picking works in the orthographic view"
+    assert list(win.doc.selection.rows) == [row], "picking works in the orthographic view"
     save_shot(win, "tools_orthographic")
     QTest.keyClick(vp, Qt.Key.Key_5)
     assert not vp.orthographic
@@ -300,18 +301,20 @@ def test_select_row_face_invert_and_visible_only_box(qtbot, sphere):
     win = sphere
     vp = win.viewport
     lat = win.state.lattice
-    win.doc.select([lat.index(2, 0, 1)])
+    win.doc.selection.select([lat.index(2, 0, 1)])
     win.act_select_line[1].trigger()  # Row Along Y
-    assert sorted(win.doc.selection) == [lat.index(2, j, 1) for j in range(3)]
+    assert sorted(win.doc.selection.rows) == [lat.index(2, j, 1) for j in range(3)]
     win.act_select_face.trigger()
-    assert sorted(win.doc.selection) == [lat.index(2, j, k) for j in range(3) for k in range(3)]
+    assert sorted(win.doc.selection.rows) == [
+        lat.index(2, j, k) for j in range(3) for k in range(3)
+    ]
     assert "x max face" in win.statusBar().currentMessage()
-    win.doc.select([lat.index(1, 1, 1)])
+    win.doc.selection.select([lat.index(1, 1, 1)])
     win.act_select_face.trigger()  # the centre node is on no face
-    assert list(win.doc.selection) == [lat.index(1, 1, 1)]
+    assert list(win.doc.selection.rows) == [lat.index(1, 1, 1)]
     assert "not on one face" in win.statusBar().currentMessage()
     QTest.keyClick(vp, Qt.Key.Key_I, Qt.KeyboardModifier.ControlModifier)
-    assert len(win.doc.selection) == 26 and lat.index(1, 1, 1) not in win.doc.selection
+    assert len(win.doc.selection.rows) == 26 and lat.index(1, 1, 1) not in win.doc.selection.rows
 
     # a box around everything: all 27; with "Select visible only", not those the sphere hides
     def box():
@@ -323,13 +326,13 @@ def test_select_row_face_invert_and_visible_only_box(qtbot, sphere):
             vp, Qt.MouseButton.LeftButton, shift, QPoint(vp.width() - 3, vp.height() - 3)
         )
 
-    win.doc.select([])
+    win.doc.selection.select([])
     box()
-    assert len(win.doc.selection) == 27
+    assert len(win.doc.selection.rows) == 27
     win.act_visible_only.setChecked(True)
-    win.doc.select([])
+    win.doc.selection.select([])
     box()
-    seen = set(win.doc.selection.tolist())
+    seen = set(win.doc.selection.rows.tolist())
     assert lat.index(1, 1, 1) not in seen, "the centre node is inside the sphere"
     # the nodes nearest the camera are in front of the sphere; the farthest behind it
     to_camera = np.linalg.norm(vp.nodes - np.array(vp.camera.position), axis=1)
@@ -345,8 +348,8 @@ def test_roles_have_shapes_and_the_legend_says_so(qtbot, sphere):
     lat = win.state.lattice
     a, b, c = lat.index(0, 0, 0), lat.index(2, 2, 2), lat.index(0, 2, 0)
     win.set_pins([a], True)
-    win.commit_edit(win.doc.edit_pin_axes([c], "z"))
-    win.doc.select([b])
+    win.commit_edit(goalrules.edit_pin_axes(win.doc.base(), [c], "z"))
+    win.doc.selection.select([b])
     win.type_position(0, float(win.viewport.nodes[b, 0]) + 0.2)
     wait_idle(qtbot, win)
     shapes = win.viewport.scene.node_shapes()

@@ -1,0 +1,61 @@
+"""The edit rule of the lattice itself (Qt-free): a new lattice of another shape around the
+same model.
+
+:func:`edit_lattice` is a function of an :class:`~isochor.app.editor.edit.EditBase`
+(``Document.base()``) and the new shape, like every edit rule; the problems built before are
+the base's :class:`~isochor.app.editor.problems.ProblemCache`, so returning to a lattice
+reuses its problem with its caches.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ...core.errors import IsochorError
+from ...core.lattice import MAX_NODES, MIN_NODES
+from ...core.scenario.problem import build
+from .edit import Edit, EditBase
+from .state import DocState, plural
+
+
+def edit_lattice(base: EditBase, shape) -> Edit | None:
+    """A new lattice of ``shape`` nodes around the same model, at rest.
+
+    Moves, pins and the timeline's keys are dropped (they name nodes of the old lattice);
+    the model pyramid is reused, and so is a problem built before for the same shape, with
+    its caches.
+    """
+    shape = tuple(int(s) for s in shape)
+    if len(shape) != 3 or not all(MIN_NODES <= s <= MAX_NODES for s in shape):
+        raise IsochorError(f"A lattice has {MIN_NODES} to {MAX_NODES} nodes per axis.")
+    st = base.state
+    if shape == tuple(st.lattice.shape):
+        return None
+    old = st.problem
+    scenario = old.scenario.with_(
+        lattice_nodes=shape, moves=(), pins=(), axis_pins=(), timeline=None
+    )
+    if base.problems is None:
+        problem = build(scenario, model=old.model)
+    else:
+        problem = base.problems.built(scenario, old.model)
+    ratio = st.target_ratio
+    n = problem.surface.lattice.n_nodes
+    # at rest: a cached problem may come from the opened scenario, whose moves and pins
+    # name the nodes of the lattice the user has just left
+    state = DocState(
+        problem,
+        problem.surface.lattice.rest_nodes,
+        np.zeros(n, bool),
+        np.zeros(n, bool),
+        ratio,
+        solved=ratio == 1.0 and not st.handles,
+        handles=st.handles,
+        timeline=replace(st.timeline, keys=()),
+        **st.settings(),
+    )
+    keys = len(st.timeline.keys)
+    dropped = f", {plural(keys, 'key')} dropped" if keys else ""
+    return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape) + dropped)
