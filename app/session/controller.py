@@ -148,6 +148,20 @@ class EditorSession(DragMixin, QObject):
         self._pending = (document.view_nodes(), None)
         self._solve_if_needed()
 
+    def set_live(self, on: bool) -> None:
+        """Solve while a node is dragged (on), or only when the drag ends."""
+        self.live = bool(on)
+
+    def watch_view(self, busy: Callable[[], bool]) -> None:
+        """``busy()`` says the window is still drawing the last frame (a big model's full
+        mesh): ``idle`` waits for it."""
+        self.view_busy = busy
+
+    def frame_drawn(self, seconds: float) -> None:
+        """The window drew the last frame in ``seconds``, whole (deform, shade, render):
+        the next frame leaves the solver a share of that (``frame_cost``)."""
+        self.frame_cost = float(seconds)
+
     def view_ready(self) -> None:
         """The window has drawn its first frame: a deferred solve may start now.
 

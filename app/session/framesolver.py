@@ -65,6 +65,11 @@ class FrameSolver(QObject):
             self.stop()
             self.cache = cache
 
+    def view_ready(self) -> None:
+        """The window drew its first frame: the frames may be solved from now on."""
+        self.ready = True
+        self.schedule()
+
     def schedule(self) -> None:
         """Start solving the missing frames when the session is idle; stop while it is
         busy (its solve, a drag)."""

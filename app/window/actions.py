@@ -103,7 +103,7 @@ class ActionSet:
         )
         self.live = A(
             "&Live Solve",
-            lambda on: setattr(s, "live", bool(on)),
+            s.set_live,
             K("L"),
             checkable=True,
             tip="Solve continuously while a node is dragged",

@@ -76,7 +76,7 @@ class FrameDrawer(QObject):
         win.show_selection()  # (the scene moved the selection markers with the nodes)
         win.handle_tools.redraw(render=False)  # the handle markers follow the model
         win.viewport.repaint()  # the one render of the frame, now: part of its cost
-        win.session.frame_cost = time.perf_counter() - t0
+        win.session.frame_drawn(time.perf_counter() - t0)
 
     def solve_started(self) -> None:
         st = self.win.state

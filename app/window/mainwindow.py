@@ -159,7 +159,7 @@ class MainWindow(QMainWindow):
         frames.solveDone.connect(self.solveDone)
         s.failed.connect(lambda message: self.error("The solver stopped", message))
         s.idle.connect(self.idle.emit)
-        s.view_busy = frames.view_busy  # idle once the full mesh is drawn
+        s.watch_view(frames.view_busy)  # idle once the full mesh is drawn
         vp.model_frames.follow_motion(frames.moving)
         s.flushed.connect(vp.model_frames.finish)
         vp.modelDrawn.connect(lambda: self.readout.frame(None))

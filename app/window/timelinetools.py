@@ -71,7 +71,7 @@ class TimelineTool(QObject):
         s.statusChanged.connect(fs.schedule)
         s.idle.connect(fs.schedule)
         s.solveStarted.connect(fs.stop)
-        win.viewport.firstPainted.connect(self._first_paint, Qt.ConnectionType.QueuedConnection)
+        win.viewport.firstPainted.connect(fs.view_ready, Qt.ConnectionType.QueuedConnection)
         fs.frameSolved.connect(self._frame_solved)
         fs.changed.connect(self.refresh)
         win.action_set.preserve.toggled.connect(lambda _on: self.refresh())
@@ -121,10 +121,6 @@ class TimelineTool(QObject):
             self.play_timer.stop()
             self.showing = False
             self.refresh()
-
-    def _first_paint(self) -> None:
-        self.solver.ready = True
-        self.solver.schedule()
 
     @property
     def cache(self):
