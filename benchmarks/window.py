@@ -181,14 +181,14 @@ def run_until(pred, timeout: float, poll_ms: int = 5) -> bool:
 def settled(win) -> bool:
     """Nothing runs, no frame is pending and the full-resolution model is drawn."""
     vp = win.viewport
-    full = getattr(vp, "showing_full", lambda: True)()
+    full = vp.model_frames.showing_full()
     return not win.is_solving() and not win.session.frame_pending and full
 
 
 def drag_node(win) -> int:
     """A free lattice node drawn well inside the view, clear of the others."""
     vp = win.viewport
-    xy, _, visible = vp.projection().project(vp.nodes)
+    xy, _, visible = vp.camera_control.projection().project(vp.nodes)
     free = ~np.asarray(win.state.fixed, bool).reshape(len(xy), -1).all(axis=1)
     best, score = -1, -1.0
     for r in np.flatnonzero(visible & free):
@@ -218,7 +218,7 @@ def one_drag(app, win, row: int, meter: _Meter) -> dict:
     from PySide6.QtTest import QTest
 
     vp = win.viewport
-    start = vp.projection().project(vp.nodes)[0][row]
+    start = vp.camera_control.projection().project(vp.nodes)[0][row]
     path = drag_path(start)
     left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
 
@@ -238,7 +238,7 @@ def one_drag(app, win, row: int, meter: _Meter) -> dict:
         QTest.mouseMove(vp, at(xy))
 
     def frame(*_args) -> None:
-        drawn.add(getattr(vp, "drawn_model", lambda: "full mesh")())
+        drawn.add(vp.model_frames.drawn_model())
 
     mover = QTimer()
     mover.setTimerType(Qt.TimerType.PreciseTimer)
@@ -246,12 +246,12 @@ def one_drag(app, win, row: int, meter: _Meter) -> dict:
     mover.timeout.connect(move)
     win.session.frameReady.connect(frame)
     meter.start("drag")
-    redraws0, t0 = win.redraws, time.perf_counter()
+    redraws0, t0 = win.frames.redraws, time.perf_counter()
     mover.start()
     run_until(lambda: done["moves"], DRAG_SECONDS + 30)
     mover.stop()
     elapsed = time.perf_counter() - t0
-    redraws = win.redraws - redraws0
+    redraws = win.frames.redraws - redraws0
     win.session.frameReady.disconnect(frame)
     release = {"gen": None}
 
@@ -298,12 +298,12 @@ def _measure(path: Path, repeats: int) -> list[dict]:
     if prepare is not None:  # what opening a file does in the background
         prepare(doc.state.problem.options)
     win = MainWindow(doc)
-    win.headless_errors = True
+    win.set_headless_errors()
     win.resize(1360, 860)
     win.show()
     try:
         run_until(lambda: win.viewport.paints > 0 and settled(win), 120)
-        win.act_live.setChecked(True)
+        win.action_set.live.setChecked(True)
         row = drag_node(win)
         runs = []
         for i in range(repeats + 1):  # the first is a warm-up

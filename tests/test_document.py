@@ -259,7 +259,7 @@ def test_the_edit_base_is_a_snapshot(doc):
     """A rule reads the base it is given: what changes in the document after the base was
     taken does not reach it, and nothing a rule does changes the document."""
     doc.selection.select([13])
-    doc.live_nodes = doc.state.nodes + 0.01
+    doc.show_live(doc.state.nodes + 0.01)
     base = doc.base()
     assert base.state is doc.state and base.rows.tolist() == [13] and base.handle is None
     np.testing.assert_array_equal(base.nodes, doc.base_nodes())
@@ -269,7 +269,7 @@ def test_the_edit_base_is_a_snapshot(doc):
     with pytest.raises(ValueError, match="read-only"):
         base.rows[0] = 1
     doc.selection.select([0])
-    doc.live_nodes = None
+    doc.show_live(None)
     edit = noderules.edit_toggle_pin(base)
     assert np.flatnonzero(edit.state.pin_axes.any(axis=1)).tolist() == [13], "the old rows"
     free = np.flatnonzero(~edit.state.fixed)
@@ -328,14 +328,14 @@ def test_edit_position_starts_from_the_base_nodes(doc):
     r = int(free_rows(doc)[0])
     doc.selection.select([r])
     live = doc.state.nodes + 0.01
-    doc.live_nodes = live
+    doc.show_live(live)
     edit = noderules.edit_position(doc.base(), 0, 2.0)
     others = np.setdiff1d(np.arange(27), [r])
     np.testing.assert_allclose(edit.state.nodes[others], live[others])
     assert edit.state.nodes[r, 0] == pytest.approx(2.0)
     np.testing.assert_allclose(edit.state.nodes[r, 1:], live[r, 1:])
     # Preserve off: plain FFD, the free nodes at rest and the live nodes ignored.
-    doc.preserve = False
+    doc.set_preserve(False)
     edit = noderules.edit_position(doc.base(), 0, 2.0)
     st = doc.state
     rest = st.lattice.rest_nodes
@@ -389,11 +389,11 @@ def test_edit_pins_all_nodes(doc):
 
 def test_edit_pins_start_from_the_base_nodes(doc):
     live = doc.state.nodes + np.linspace(0, 0.02, 81).reshape(27, 3)
-    doc.live_nodes = live
+    doc.show_live(live)
     edit = noderules.edit_pins(doc.base(), free_rows(doc)[:1], True)
     np.testing.assert_allclose(edit.state.nodes, live)
     # Preserve off: the plain FFD, free nodes at rest and fixed ones where the user put them.
-    doc.preserve = False
+    doc.set_preserve(False)
     st = doc.state
     edit = noderules.edit_pins(doc.base(), free_rows(doc)[:1], True)
     expect = np.where(st.fixed[:, None], st.nodes, st.lattice.rest_nodes)
@@ -450,7 +450,7 @@ def test_edit_target_rejects_an_infinite_target(rest):
 
 def test_edit_target_starts_from_the_base_nodes(doc):
     live = doc.state.nodes * 1.01
-    doc.live_nodes = live
+    doc.show_live(live)
     np.testing.assert_allclose(goalrules.edit_target(doc.base(), 95).state.nodes, live)
 
 
@@ -559,7 +559,7 @@ def test_every_edit_is_unsolved_without_a_result(doc):
 
 def test_record_result_on_the_current_cell(doc):
     events = events_of(doc)
-    doc.live_nodes = doc.state.nodes + 0.1
+    doc.show_live(doc.state.nodes + 0.1)
     solved = doc.state.nodes + 0.05
     s = summary()
     doc.record_result(doc.cell, solved, s)
@@ -577,7 +577,7 @@ def test_record_result_on_a_cell_that_is_not_current(doc):
     commit(doc, goalrules.edit_target(doc.base(), 90))
     current = doc.state
     events = events_of(doc)
-    doc.live_nodes = current.nodes
+    doc.show_live(current.nodes)
     doc.record_result(old, None, summary(levels=(6,)))
     assert events == []
     assert doc.state is current and doc.live_nodes is not None
@@ -644,7 +644,7 @@ def test_an_edit_after_a_converged_solve_shows_no_old_result(doc, torus_result):
 def test_set_cell_with_a_new_lattice_clears_the_selection(doc):
     doc.selection.select([1, 2, 26])
     events = events_of(doc)
-    doc.live_nodes = doc.state.nodes
+    doc.show_live(doc.state.nodes)
     doc.begin_drag()
     commit(doc, latticerules.edit_lattice(doc.base(), (2, 2, 2)))
     assert events == ["scene", "state"]
@@ -655,7 +655,7 @@ def test_set_cell_with_a_new_lattice_clears_the_selection(doc):
 def test_set_cell_with_the_same_lattice_keeps_the_selection(doc):
     doc.selection.select([1, 2, 26])
     events = events_of(doc)
-    doc.live_nodes = doc.state.nodes
+    doc.show_live(doc.state.nodes)
     doc.begin_drag()
     cell = commit(doc, goalrules.edit_target(doc.base(), 90))
     assert events == ["state"]
@@ -731,13 +731,13 @@ def test_end_drag_takes_the_free_nodes_from_the_live_solve(doc):
     rows = free_rows(doc)[:1]
     doc.selection.select(rows)
     start_live = doc.state.nodes + 0.01
-    doc.live_nodes = start_live
+    doc.show_live(start_live)
     drag = doc.begin_drag()
     np.testing.assert_allclose(drag.base, start_live)  # starts from what is on screen
     delta = np.array([0.2, 0.0, 0.0])
     drag.move(delta, doc.live_nodes)
     newer = doc.state.nodes + 0.02  # the preview solve went on
-    doc.live_nodes = newer
+    doc.show_live(newer)
     edit = doc.end_drag()
     others = np.setdiff1d(np.arange(27), rows)
     np.testing.assert_allclose(edit.state.nodes[others], newer[others])
@@ -746,10 +746,10 @@ def test_end_drag_takes_the_free_nodes_from_the_live_solve(doc):
 
 
 def test_drag_with_preserve_off_is_plain_ffd(doc):
-    doc.preserve = False
+    doc.set_preserve(False)
     rows = free_rows(doc)[:1]
     doc.selection.select(rows)
-    doc.live_nodes = doc.state.nodes + 0.5  # ignored without the volume constraint
+    doc.show_live(doc.state.nodes + 0.5)  # ignored without the volume constraint
     st = doc.state
     plain = np.where(st.fixed[:, None], st.nodes, st.lattice.rest_nodes)
     drag = doc.begin_drag()
@@ -779,12 +779,12 @@ def test_view_and_base_nodes(doc):
     np.testing.assert_allclose(doc.view_nodes(), solved)
     np.testing.assert_allclose(doc.base_nodes(), solved)
     live = solved + 0.1
-    doc.live_nodes = live
+    doc.show_live(live)
     np.testing.assert_allclose(doc.base_nodes(), live)
     base = doc.base_nodes()
     base[:] = 0  # a copy
     np.testing.assert_allclose(doc.live_nodes, live)
-    doc.preserve = False
+    doc.set_preserve(False)
     plain = np.where(st.fixed[:, None], solved, st.lattice.rest_nodes)
     np.testing.assert_allclose(doc.view_nodes(), plain)
     np.testing.assert_allclose(doc.base_nodes(), plain)
@@ -1224,7 +1224,7 @@ def test_drag_and_plain_ffd_hold_pinned_coordinates_only(doc):
     doc.cancel_drag()
     solved = doc.state.nodes + 0.1
     doc.record_result(doc.cell, solved, summary())
-    doc.preserve = False
+    doc.set_preserve(False)
     rest = doc.state.lattice.rest_nodes
     view = doc.view_nodes()
     np.testing.assert_allclose(view[r], [rest[r, 0], rest[r, 1], solved[r, 2]])
@@ -1249,7 +1249,7 @@ def test_held_is_the_far_face_of_a_move_on_a_fresh_lattice(rest):
     commit(rest, goalrules.edit_anchor(rest.base(), False))
     assert rest.held()[1] == "" and not rest.held()[0].any()
     rest.set_cell(StateCell(goalrules.edit_anchor(rest.base(), True).state))
-    rest.preserve = False
+    rest.set_preserve(False)
     assert rest.held()[1] == ""
 
 

@@ -80,7 +80,7 @@ def test_typed_rotation_about_an_axis_through_the_centre():
 
 def test_grab_typed_and_mouse_values():
     t = Transform("grab", np.zeros(3))
-    t.mouse = np.array([0.1, 0.2, 0.3])
+    t.follow(np.array([0.1, 0.2, 0.3]))
     assert np.allclose(t.matrix()[:3, 3], [0.1, 0.2, 0.3])
     assert t.text().startswith("Move by (0.1, 0.2, 0.3) —")
     t.lock("y")

@@ -169,7 +169,7 @@ def take_screenshot(app, window, out: str | Path, timeout: float = SCREENSHOT_TI
 
     from ...core.errors import IsochorError
 
-    window.headless_errors = True
+    window.set_headless_errors()
     # A local loop, not app.exec()/app.quit(): quitting the application would make every
     # later event loop in this process return at once (it matters to tests).
     loop = QEventLoop()

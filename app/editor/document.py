@@ -90,8 +90,8 @@ class Document:
         self._listeners: list[Listener] = []
         self.selection = Selection(lambda: self.cell.state, lambda: self._emit("selection"))
         self.drag: DragSession | HandleDrag | None = None
-        self.preserve = True
-        self.live_nodes: np.ndarray | None = None
+        self._preserve = True
+        self._live_nodes: np.ndarray | None = None
         self.problems = ProblemCache(problem)
         self.path = path
         self.title = title or _model_title(problem.scenario)
@@ -168,12 +168,29 @@ class Document:
         old = self.cell.state.problem
         self.cell = cell
         self.drag = None
-        self.live_nodes = None
+        self._live_nodes = None
         new_scene = cell.state.problem is not old
         self.selection.follow(cell.state, new_scene)
         if new_scene:
             self._emit("scene")
         self._emit("state")
+
+    @property
+    def preserve(self) -> bool:
+        """"Preserve volume" is on (off: plain FFD, nothing is solved)."""
+        return self._preserve
+
+    def set_preserve(self, on: bool) -> None:
+        self._preserve = bool(on)
+
+    @property
+    def live_nodes(self) -> np.ndarray | None:
+        """The newest nodes of a running solve (None when idle): the base of edits."""
+        return self._live_nodes
+
+    def show_live(self, nodes: np.ndarray | None) -> None:
+        """The newest nodes of the running solve (None: nothing runs); edits start there."""
+        self._live_nodes = None if nodes is None else np.asarray(nodes)
 
     def needs_solve(self) -> bool:
         """The current state should be solved: preserve is on and it never was."""
@@ -186,7 +203,7 @@ class Document:
             nodes = cell.state.nodes
         cell.state = replace(cell.state, nodes=nodes, solved=True, result=summary)
         if cell is self.cell:
-            self.live_nodes = None
+            self._live_nodes = None
             self._emit("state")
 
     def view_nodes(self, state: DocState | None = None) -> np.ndarray:

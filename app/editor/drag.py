@@ -37,6 +37,10 @@ class DragSession:
         self.verb = verb
         self.handles = before.state.handles  #: the handles a live preview solves with
 
+    def rename(self, verb: str) -> None:
+        """The gesture changed its mode (G, R, S again): its undo step's verb."""
+        self.verb = verb
+
     @property
     def text(self) -> str:
         """The undo step's words: ``"Scale 9 nodes"``, ``"Move 1 node, mirrored"``."""

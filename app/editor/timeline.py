@@ -232,6 +232,14 @@ class FrameCache:
         else:
             self.unconverged.add(frame.frame)
 
+    def finish(self) -> None:
+        """The background solve ended: every frame it could solve is here."""
+        self.done = True
+
+    def fail(self, message: str) -> None:
+        """The background solve stopped: ``message`` says why."""
+        self.failed = message
+
     @property
     def complete(self) -> bool:
         return self.done or len(self.frames) >= self.total

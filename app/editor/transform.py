@@ -6,7 +6,7 @@ the selection's centre, an optional world-axis lock (``X``/``Y``/``Z``: along th
 types, which overrides the mouse (``S Z 0.5 Enter`` scales by 0.5 along z about the centre,
 ``R X 90 Enter`` rotates 90 degrees about the x axis through it, ``G Y 0.2 Enter`` moves by
 0.2 along y). It is an affine map of world points, :meth:`Transform.matrix` (4, 4); the
-view (:mod:`isochor.app.view.viewtools`) turns mouse positions into :attr:`Transform.mouse` and
+view (:mod:`isochor.app.view.transformtool`) turns mouse positions into :attr:`Transform.mouse` and
 the drag session applies the map to the rows it moves.
 
 What a typed number means:
@@ -97,6 +97,10 @@ class Transform:
         self.view = v / np.linalg.norm(v)
         if self.mouse is None:
             self.mouse = self.identity()
+
+    def follow(self, value) -> None:
+        """What the mouse says now (the mode's kind of value, see :attr:`mouse`)."""
+        self.mouse = value
 
     def identity(self):
         """The mouse value that changes nothing."""

@@ -150,7 +150,7 @@ class EditorSession(QObject):
         self._stop()
         preserve = self.document.preserve
         self.document = document
-        document.preserve = preserve
+        document.set_preserve(preserve)
         document.subscribe(lambda event, doc=document: self._on_document(doc, event))
         _prepare(document)
         self.undo_stack.clear()
@@ -159,6 +159,20 @@ class EditorSession(QObject):
         self.documentLoaded.emit()
         self._pending = (document.view_nodes(), None)
         self._solve_if_needed()
+
+    def set_live(self, on: bool) -> None:
+        """Solve while a node is dragged (on), or only when the drag ends."""
+        self.live = bool(on)
+
+    def watch_view(self, busy: Callable[[], bool]) -> None:
+        """``busy()`` says the window is still drawing the last frame (a big model's full
+        mesh): ``idle`` waits for it."""
+        self.view_busy = busy
+
+    def frame_drawn(self, seconds: float) -> None:
+        """The window drew the last frame in ``seconds``, whole (deform, shade, render):
+        the next frame leaves the solver a share of that (``frame_cost``)."""
+        self.frame_cost = float(seconds)
 
     def view_ready(self) -> None:
         """The window has drawn its first frame: a deferred solve may start now.
@@ -251,10 +265,10 @@ class EditorSession(QObject):
         """Turn the volume constraint on or off (off: plain FFD, nothing is solved)."""
         if bool(on) == self.document.preserve:
             return
-        self.document.preserve = bool(on)
+        self.document.set_preserve(bool(on))
         if not on:
             self._stop()
-        self.document.live_nodes = None
+        self.document.show_live(None)
         self._pending = (self.document.view_nodes(), None)
         self._solve_if_needed()
 
@@ -345,7 +359,7 @@ class EditorSession(QObject):
             return
         drag = self.document.drag
         nodes = np.array(record.nodes)
-        self.document.live_nodes = nodes
+        self.document.show_live(nodes)
         if self._live_preview and drag is not None:
             nodes = drag.with_dragged(nodes)
         self._pending = (nodes, record)
@@ -358,7 +372,7 @@ class EditorSession(QObject):
         self.last_result = result
         drag = self.document.drag
         if self._live_preview:  # a preview during a live drag: show it, keep no state
-            self.document.live_nodes = np.array(result.nodes)
+            self.document.show_live(np.array(result.nodes))
             if drag is not None:
                 self._pending = (drag.with_dragged(result.nodes), None)
             self.solveDone.emit(gen, True)

@@ -91,7 +91,7 @@ class SessionDrag:
         doc = host.document()
         base = doc.base_nodes()
         host.stop()
-        doc.live_nodes = base if doc.preserve else None
+        doc.show_live(base if doc.preserve else None)
         if begin(doc) is None:
             return False
         host.activity("dragging")

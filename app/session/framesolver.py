@@ -65,6 +65,11 @@ class FrameSolver(QObject):
             self.stop()
             self.cache = cache
 
+    def view_ready(self) -> None:
+        """The window drew its first frame: the frames may be solved from now on."""
+        self.ready = True
+        self.schedule()
+
     def schedule(self) -> None:
         """Start solving the missing frames when the session is idle; stop while it is
         busy (its solve, a drag)."""
@@ -82,7 +87,7 @@ class FrameSolver(QObject):
         try:
             problem = sequence_problem(doc.state)
         except IsochorError as exc:
-            cache.failed = str(exc)
+            cache.fail(str(exc))
             self.changed.emit()
             return
         self._job_cache = cache
@@ -120,14 +125,14 @@ class FrameSolver(QObject):
     def _on_done(self, gen: int, _sequence) -> None:
         if gen != self._job:
             return
-        self._job_cache.done = True
+        self._job_cache.finish()
         self._job = self._job_cache = None
         self.changed.emit()
 
     def _on_failed(self, gen: int, message: str) -> None:
         if gen != self._job:
             return
-        self._job_cache.failed = message
+        self._job_cache.fail(message)
         self._job = self._job_cache = None
         self.changed.emit()
 

@@ -69,7 +69,7 @@ class NodeDrag:
     press: QPointF
     anchor: np.ndarray  #: world position of the grabbed node at the start
     depth: float  #: its normalised device depth
-    pos: QPointF = None
+    pos: QPointF  #: where the mouse is now
     axis: str | None = None
     plane: bool = False  #: True: move in the plane across ``axis``
     delta: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -78,3 +78,7 @@ class NodeDrag:
         if self.axis is None:
             return ""
         return f"plane across {self.axis.upper()}" if self.plane else f"{self.axis.upper()} axis"
+
+
+#: what a mouse press in the view started
+Press = NodePress | HandlePress | ModelPress | BoxPress | CameraPress | ContextPress | IgnorePress

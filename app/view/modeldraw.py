@@ -1,12 +1,12 @@
 """The view's frames of the model: the proxy while something moves, the full mesh prepared in
-steps when it stops (:mod:`isochor.app.view.modelview`). A mixin of
+steps when it stops (:mod:`isochor.app.view.modelview`). A part of
 :class:`~isochor.app.view.viewport.Viewport`. GUI thread only.
 
-A frame places the nodes and the model (:meth:`ModelDrawMixin.set_frame`; the window then
-renders at once, so that what a frame costs is measured whole). When a big model stops
-moving, a zero-interval timer prepares its full mesh one step per event-loop turn and
-renders it when it is ready; ``modelDrawn`` says so. A press that may start a drag draws
-the proxy already (:meth:`ModelDrawMixin.hold_proxy`).
+A frame places the nodes and the model (:meth:`ModelFrames.place`; the window then renders
+at once, so that what a frame costs is measured whole). When a big model stops moving, a
+zero-interval timer prepares its full mesh one step per event-loop turn and renders it
+when it is ready; ``drawn`` says so. A press that may start a drag draws the proxy already
+(:meth:`ModelFrames.hold_proxy`).
 """
 
 from __future__ import annotations
@@ -14,65 +14,78 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from PySide6.QtCore import QTimer
+from PySide6.QtCore import QObject, QTimer, Signal
+
+from .scene import Scene
 
 
-class ModelDrawMixin:
-    """Needs the viewport's ``scene``, ``update()``/``repaint()``, ``show_gizmo()``,
-    ``_update_guide()``, ``dragging`` and its ``modelDrawn`` signal."""
+class ModelFrames(QObject):
+    """What the model's frames draw, and the full mesh's preparation after a move.
 
-    _model_timer: QTimer | None = None
-    _held = False  # a press drew the proxy: its release draws the full mesh again
-    #: the window says whether the lattice is on the move (set by the window)
-    moving_hint: Callable[[], bool] = staticmethod(lambda: False)
+    Parameters
+    ----------
+    scene : the actors (the model as full mesh or proxy, the lattice)
+    repaint : renders the view now (the full mesh is on screen when ``drawn`` says so)
 
-    def set_frame(self, nodes: np.ndarray, moving: bool = False) -> None:
+    Signals
+    -------
+    drawn() : a big model's full mesh is on screen again after its proxy
+    """
+
+    drawn = Signal()
+
+    def __init__(
+        self, scene: Scene, repaint: Callable[[], None], parent: QObject | None = None
+    ) -> None:
+        super().__init__(parent)
+        self.scene = scene
+        self.repaint = repaint
+        self.held = False  #: a press drew the proxy: its release draws the full mesh again
+        self._moving: Callable[[], bool] = lambda: False
+        self._timer = QTimer(self)
+        self._timer.setInterval(0)
+        self._timer.timeout.connect(self._step)
+
+    def follow_motion(self, moving: Callable[[], bool]) -> None:
+        """``moving()`` says whether the lattice is on the move (the window knows)."""
+        self._moving = moving
+
+    def moving(self) -> bool:
+        """The lattice is on the move, as the window says."""
+        return self._moving()
+
+    def place(self, nodes: np.ndarray, moving: bool = False) -> None:
         """Place the lattice and the model at ``nodes`` (a big model as its proxy while
         ``moving``); the view renders at its next paint."""
         self.scene.set_frame(nodes, moving)
-        if self.dragging:
-            self._update_guide()
-        self.show_gizmo()
         if self.scene.model.upgrading:
-            if self._model_timer is None:
-                self._model_timer = QTimer(self)
-                self._model_timer.setInterval(0)
-                self._model_timer.timeout.connect(self._model_step)
-            self._model_timer.start()
-        elif self._model_timer is not None:
-            self._model_timer.stop()
+            self._timer.start()
+        else:
+            self._timer.stop()
 
     def hold_proxy(self) -> None:
         """A press that may start a drag: draw a big model's proxy from now on, so the
         repaints the press causes (the selection) are a proxy's, not the full mesh's."""
         if self.scene.built and self.scene.model.proxy is not None:
-            self.scene.model.draw(self.nodes, moving=True)
-            self._held = True
+            self.scene.model.draw(self.scene.nodes, moving=True)
+            self.held = True
 
-    def holding(self) -> bool:
-        """A press that may start a drag is on (the window counts it as moving)."""
-        return self._held
+    def release(self) -> bool:
+        """The press ended: True when it held the proxy (the full mesh is due again)."""
+        held, self.held = self.held, False
+        return held
 
-    def end_press(self, dragged: bool = False) -> None:
-        """The press ended: when it ``dragged`` nothing, draw what the window draws when
-        nothing is pressed (a drag's end brings its own frames)."""
-        if self._held:
-            self._held = False
-            if not dragged and not self.dragging:
-                self.set_frame(self.nodes, self.moving_hint())
-                self.update()
-
-    def _model_step(self) -> None:
+    def _step(self) -> None:
         if self.scene.model.step():
-            self._model_timer.stop()
+            self._timer.stop()
             self.repaint()  # the full mesh is on screen when it says so
-            self.modelDrawn.emit()
+            self.drawn.emit()
 
-    def finish_model(self) -> None:
+    def finish(self) -> None:
         """Draw the full mesh now if it is being prepared (before a screenshot)."""
         if self.scene.built and self.scene.model.upgrading:
             self.scene.model.finish()
-            self._model_step()
+            self._step()
 
     def showing_full(self) -> bool:
         """The full mesh is on screen (nothing is being prepared)."""

@@ -26,6 +26,7 @@ class Scene:
         self.actors: dict[str, object] = {}
         self.nodes = np.zeros((0, 3))
         self.selection = np.zeros(0, dtype=int)
+        self.size = 1.0  #: the model's size (the largest extent of its bounding box)
         self.model = ModelView(plotter)  #: the model: the full mesh, or its proxy
         self.show_lattice = True
         self.show_diagonals = True
@@ -71,6 +72,7 @@ class Scene:
         for actor in self.actors.values():
             p.remove_actor(actor, render=False)
         self.actors.clear()
+        self.size = float(surface.size)
         self.nodes = np.array(nodes, dtype=np.float64)
         self.selection = np.zeros(0, dtype=int)
 
@@ -199,6 +201,10 @@ class Scene:
     def set_selection(self, rows) -> None:
         self.selection = np.asarray(rows, dtype=int)
         self._update_selection()
+
+    def selected_rows(self) -> np.ndarray:
+        """The selected rows among the nodes drawn."""
+        return self.selection[self.selection < len(self.nodes)]
 
     def set_ghost(self, on: bool) -> None:
         self.actors["ghost"].SetVisibility(bool(on))

@@ -11,30 +11,39 @@ Mouse (left button)
   rubber band that selects the nodes inside it (Shift adds to the selection).
 - on a gizmo arrow: drag the selection along that axis; on a handle's marker: select it,
   drag its target; on the model with the Handle tool (or Ctrl): place a handle, and drag
-  it at once (:mod:`isochor.app.view.handleview`).
+  it at once (:mod:`isochor.app.view.handletool`).
 - middle button pans, the wheel zooms, right-drag zooms; a right click opens the context
   menu of the handle or node under the cursor (or of the selection).
 
-Keys: G, R, S grab, rotate and scale the selection (:mod:`isochor.app.view.viewtools`).
+Keys: G, R, S grab, rotate and scale the selection (:mod:`isochor.app.view.transformtool`).
 
 The view holds no editing state: it asks for selections and reports drags by signals, and
-draws what the window gives it (:class:`~isochor.app.view.scene.Scene` holds the actors). The
-projection and picking maths are in :mod:`isochor.app.view.picking`. GUI thread only.
+draws what the window gives it. It is composed of parts that own their state, and its Qt
+event handlers dispatch to them: the actors (:class:`~isochor.app.view.scene.Scene`), the
+camera (:class:`~isochor.app.view.camera.CameraControl`), the running drag
+(:class:`~isochor.app.view.nodedrag.NodeDragger`), the G/R/S gestures
+(:class:`~isochor.app.view.transformtool.TransformTool`), the handle gestures
+(:class:`~isochor.app.view.handletool.HandleTool`), the model's frames
+(:class:`~isochor.app.view.modeldraw.ModelFrames`) and the overlays (the gizmo, the handle
+markers). The projection and picking maths are in :mod:`isochor.app.view.picking`. GUI
+thread only.
 """
 
 from __future__ import annotations
 
 import time
-from contextlib import nullcontext
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 
 import numpy as np
-from PySide6.QtCore import QPoint, QPointF, QRect, QSize, Qt, Signal
+from PySide6.QtCore import QEvent, QPoint, QPointF, QRect, QSize, Qt, Signal
 from PySide6.QtWidgets import QLabel, QRubberBand
 from pyvistaqt import QtInteractor
 
 from ...core.io.formats import is_model, is_scenario
-from . import picking, style
-from .camera import AXES, CameraMixin
+from ..editor.transform import unit
+from . import style
+from .camera import AXES, CameraControl
 from .gestures import (
     BoxPress,
     CameraPress,
@@ -42,21 +51,43 @@ from .gestures import (
     HandlePress,
     IgnorePress,
     ModelPress,
-    NodeDrag,
     NodePress,
+    Press,
 )
-from .handleview import HandleViewMixin
-from .modeldraw import ModelDrawMixin
-from .overlays import Gizmo, HandleMarkers, Overlay
+from .handletool import HandleTool
+from .modeldraw import ModelFrames
+from .nodedrag import NodeDragger
+from .overlays import GIZMO_FRACTION, Gizmo, HandleMarkers, Overlay
 from .scene import Scene
-from .viewtools import ToolsMixin
+from .transformtool import TransformTool
 
 #: The mouse must travel this many pixels before a press becomes a drag.
 DRAG_THRESHOLD = 3.0
 
 
-class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInteractor):
+class Viewport(QtInteractor):
     """The pyvistaqt view with Isochor's actors and node interaction.
+
+    Parameters
+    ----------
+    parent : the parent widget
+    paint_hold : the context every paint runs in (the window's: its solver held, so that
+                 the solver starts no step while the renderer has the cores)
+
+    Attributes
+    ----------
+    scene : :class:`~isochor.app.view.scene.Scene`, the actors
+    camera_control : :class:`~isochor.app.view.camera.CameraControl`, where the view looks
+                     and what is under a point of it
+    node_drag : :class:`~isochor.app.view.nodedrag.NodeDragger`, the running drag
+    transform_tool : :class:`~isochor.app.view.transformtool.TransformTool`, G / R / S
+    handle_tool : :class:`~isochor.app.view.handletool.HandleTool`, the handle gestures
+    model_frames : :class:`~isochor.app.view.modeldraw.ModelFrames`, the model's frames
+    gizmo, handles : the overlays (:mod:`isochor.app.view.overlays`)
+    colour_legend : the colour legend at the top left
+    box_mode : any drag on empty space draws a selection box
+    visible_only : box selection skips the nodes the model hides
+    paints, paint_seconds : how many times the view was drawn, and how long the last took
 
     Signals
     -------
@@ -100,7 +131,11 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
     handleMenuRequested = Signal(int, QPoint)
     modelDrawn = Signal()
 
-    def __init__(self, parent=None) -> None:
+    def __init__(
+        self,
+        parent=None,
+        paint_hold: Callable[[], AbstractContextManager] = nullcontext,
+    ) -> None:
         super().__init__(parent, auto_update=False, multi_samples=0)
         self.set_background(style.BACKGROUND_BOTTOM, top=style.BACKGROUND_TOP)
         self.setContextMenuPolicy(Qt.ContextMenuPolicy.PreventContextMenu)
@@ -109,27 +144,56 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
         self.overlay = Overlay(self)
         self.gizmo = Gizmo(self.overlay)
         self.handles = HandleMarkers(self.overlay)
+        self.camera_control = CameraControl(self, self.scene)
+        self.node_drag = NodeDragger(self.camera_control, self)
+        self.transform_tool = TransformTool(self.camera_control, self.scene, self)
+        self.handle_tool = HandleTool(
+            self.camera_control, self.scene, self.handles, self.node_drag, self
+        )
+        self.model_frames = ModelFrames(self.scene, self.repaint, self)
         self.box_mode = False
-        self.visible_only = False  #: box selection skips the nodes the model hides
-        self.paint_hold = nullcontext  #: around every paint (the window: its solver held)
-        self._mouse: QPointF | None = None  # the last mouse position seen
-        self._size = 1.0
-        self._up = AXES["z"]
-        self._press = None
-        self._drag: NodeDrag | None = None
-        self._needs_home = False
-        self.paint_seconds = 0.0  #: how long the last repaint took
+        self.visible_only = False
+        self.paint_seconds = 0.0
         self.paints = 0
+        self._paint_hold = paint_hold
+        self._mouse: QPointF | None = None  # the last mouse position seen
+        self._press: Press | None = None  # what the running mouse press started
         self._band = QRubberBand(QRubberBand.Shape.Rectangle, self)
-        self._legend = QLabel(self, objectName="overlay")
-        self._legend.setTextFormat(Qt.TextFormat.RichText)
-        self._legend.setText(style.legend_html())
-        self._legend.move(12, 12)
-        self._legend.adjustSize()
-        self._legend.setAttribute(Qt.WidgetAttribute.WA_TransparentForMouseEvents)
+        self.colour_legend = QLabel(self, objectName="overlay")
+        self.colour_legend.setTextFormat(Qt.TextFormat.RichText)
+        self.colour_legend.setText(style.legend_html())
+        self.colour_legend.move(12, 12)
+        self.colour_legend.adjustSize()
+        self.colour_legend.setAttribute(Qt.WidgetAttribute.WA_TransparentForMouseEvents)
         self._info = QLabel(self, objectName="hint")
         self._info.setAttribute(Qt.WidgetAttribute.WA_TransparentForMouseEvents)
         self._info.hide()
+        self._connect_parts()
+
+    def _connect_parts(self) -> None:
+        """The parts' signals are the view's (and redraw what they change)."""
+        d = self.node_drag
+        d.started.connect(self.dragStarted)
+        d.moved.connect(self.dragMoved)
+        d.finished.connect(self.dragFinished)
+        d.canceled.connect(self.dragCanceled)
+        d.lockChanged.connect(self.lockChanged)
+        d.guideChanged.connect(self._update_guide)
+        t = self.transform_tool
+        t.started.connect(self._transform_started)
+        t.moved.connect(self.transformMoved)
+        t.guideChanged.connect(self._update_guide)
+        t.hintChanged.connect(self.hintChanged)
+        t.finished.connect(self.dragFinished)
+        t.finished.connect(self.show_gizmo)
+        t.canceled.connect(self.dragCanceled)
+        t.canceled.connect(self.show_gizmo)
+        h = self.handle_tool
+        h.selected.connect(self.handleSelected)
+        h.placed.connect(self.handlePlaced)
+        h.dragStarted.connect(self.handleDragStarted)
+        h.menuRequested.connect(self.handleMenuRequested)
+        self.model_frames.drawn.connect(self.modelDrawn)
 
     # -- what is drawn -----------------------------------------------------------------------
     @property
@@ -150,19 +214,18 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
         self, surface, nodes, pin_axes, moved, *, up: str = "z", reset_camera: bool = True
     ) -> None:
         """Build the actors of a model in a lattice; ``reset_camera`` frames it."""
-        self._size = float(surface.size)
-        self._up = AXES[up]
-        self._drag = None
-        self._transform = None
+        size = float(surface.size)
+        self.camera_control.set_up(AXES[up])
+        self.node_drag.drop()
+        self.transform_tool.drop()
         self.scene.build(surface, nodes, pin_axes, moved)
-        self.set_gizmo_size(self._size)
-        self.handles.set_size(self._size)
+        self.gizmo.set_length(GIZMO_FRACTION * size)
+        self.handles.set_size(size)
         self.show_gizmo()
         if reset_camera:
-            self.home_view()
             # Until the view has its final size its aspect ratio is not known: frame again
             # on the next resize (the first show, a window resized before it is shown).
-            self._needs_home = True
+            self.camera_control.home_view(again_when_sized=True)
 
     def set_selection(self, rows, repaint: bool = True) -> None:
         """Mark the selected nodes; ``repaint`` False: a frame that follows draws them."""
@@ -170,6 +233,34 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
         self.show_gizmo()
         if repaint:
             self.update()
+
+    def set_frame(self, nodes: np.ndarray, moving: bool = False) -> None:
+        """Place the lattice and the model at ``nodes`` (a big model as its proxy while
+        ``moving``); the view renders at its next paint."""
+        self.model_frames.place(nodes, moving)
+        if self.dragging:
+            self._update_guide()
+        self.show_gizmo()
+
+    def show_gizmo(self) -> None:
+        """The gizmo at the centre of the selection as drawn (hidden without one, with the
+        lattice hidden, and during a gesture)."""
+        rows = self.scene.selected_rows()
+        if len(rows) == 0 or not self.scene.show_lattice or self.transform_tool.running:
+            self.gizmo.hide()
+            return
+        self.gizmo.show_at(self.nodes[rows].mean(axis=0))
+
+    def _update_guide(self) -> None:
+        """The guide line of a locked axis through the dragged point, in the axis's colour
+        (a drag's, or a grab, rotate or scale's)."""
+        line = self.node_drag.guide() or self.transform_tool.guide()
+        if line is None:
+            self.scene.set_guide(None)
+            return
+        axis, c = line
+        a = unit(axis) * 3 * self.scene.size
+        self.scene.set_guide(np.array([c - a, c + a]), style.AXIS_COLOURS[axis])
 
     def show_info(self, text: str) -> None:
         """A one-line note at the bottom left of the view (empty hides it)."""
@@ -181,9 +272,17 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
         self._info.move(12, self.height() - self._info.height() - 12)
         self._info.show()
 
+    def set_box_mode(self, on: bool) -> None:
+        """Any drag on empty space draws a selection box (on), or turns the camera."""
+        self.box_mode = bool(on)
+
+    def set_visible_only(self, on: bool) -> None:
+        """Box selection skips the nodes the model hides (on)."""
+        self.visible_only = bool(on)
+
     def paintGL(self) -> None:
         t0 = time.perf_counter()
-        with self.paint_hold():  # the solver starts no step while the renderer has the cores
+        with self._paint_hold():  # the solver starts no step while the renderer has the cores
             super().paintGL()
         self.paint_seconds = time.perf_counter() - t0
         self.paints += 1
@@ -192,97 +291,98 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
 
     def resizeEvent(self, ev) -> None:
         super().resizeEvent(ev)
-        if self._needs_home and self.isVisible() and self.width() > 10:
-            self._needs_home = False
-            self.home_view()
+        if self.isVisible():
+            self.camera_control.home_when_sized()
         if self._info.isVisible():
             self._info.move(12, self.height() - self._info.height() - 12)
 
     def showEvent(self, ev) -> None:
         super().showEvent(ev)
-        if self._needs_home and self.width() > 10:
-            self._needs_home = False
-            self.home_view()
+        self.camera_control.home_when_sized()
 
-    # -- dragging ----------------------------------------------------------------------------
+    # -- gestures ----------------------------------------------------------------------------
     @property
     def dragging(self) -> bool:
         """A node drag, a gizmo drag or a grab, rotate or scale gesture runs."""
-        return self._drag is not None or self._transform is not None
+        return self.node_drag.active or self.transform_tool.running
 
-    def _update_drag(self, pos: QPointF) -> None:
-        drag = self._drag
-        drag.pos = pos
-        axis = AXES[drag.axis] if drag.axis is not None else None
-        delta = picking.drag_delta(
-            self.projection(),
-            (drag.press.x(), drag.press.y()),
-            (pos.x(), pos.y()),
-            drag.anchor,
-            drag.depth,
-            axis,
-            drag.plane,
-        )
-        if delta is not None:
-            drag.delta = delta
-        self.dragMoved.emit(drag.delta.copy())
+    def start_transform(self, mode: str) -> bool:
+        """Start a grab, rotate or scale of the selection at the mouse (False: nothing
+        selected, the lattice hidden, or a drag runs)."""
+        if self.node_drag.active:
+            return False
+        mouse = self._mouse
+        inside = mouse is not None and self.rect().contains(mouse.toPoint())
+        return self.transform_tool.start(mode, mouse if inside else None)
 
-    def set_lock(self, axis: str | None, plane: bool = False) -> None:
-        drag = self._drag
-        if drag is None:
-            return
-        if drag.axis == axis and drag.plane == plane:
-            axis, plane = None, False  # the same key again unlocks
-        drag.axis, drag.plane = axis, plane
-        self._update_drag(drag.pos)
-        self._update_guide()
-        self.lockChanged.emit(drag.lock_text())
+    def _transform_started(self, verb: str, new: bool) -> None:
+        if new:  # the rest of the press is the gesture's, and the keys
+            self._press = IgnorePress()
+            self.setFocus(Qt.FocusReason.OtherFocusReason)
+            self.gizmo.hide()
+        self.transformStarted.emit(verb)
 
     def cancel_drag(self) -> None:
-        if self._drag is None:
+        """Esc during a drag: the selection goes back."""
+        if not self.node_drag.active:
             return
-        self._drag = None
         self._press = IgnorePress()
-        self._update_guide()
-        self.dragCanceled.emit()
+        self.node_drag.cancel()
 
-    def _end_drag(self) -> None:
-        self._drag = None
-        self._update_guide()
-        self.dragFinished.emit()
+    def _gizmo_press(self, pos: QPointF) -> bool:
+        """A press on a gizmo arrow starts a drag of the selection along its axis."""
+        axis = self.gizmo.axis_at(self.camera_control.projection(), pos.x(), pos.y())
+        if axis is None:
+            return False
+        self._press = IgnorePress()
+        self.node_drag.begin(pos, self.gizmo.centre.copy(), axis=axis)
+        return True
 
     # -- Qt events ---------------------------------------------------------------------------
+    def event(self, ev) -> bool:
+        # during a gesture or drag every key is the view's: not "1" for the front view
+        if ev.type() == QEvent.Type.ShortcutOverride and self.dragging:
+            ev.accept()
+            return True
+        return super().event(ev)
+
     def mousePressEvent(self, ev) -> None:
         pos = ev.position()
         self._mouse = QPointF(pos)
         shift = bool(ev.modifiers() & Qt.KeyboardModifier.ShiftModifier)
         self.setFocus(Qt.FocusReason.MouseFocusReason)
-        if self._transform is not None:  # a click confirms or cancels the gesture
-            self._transform_press(ev)
+        if self.transform_tool.running:  # a click confirms or cancels the gesture
+            self.transform_tool.press(ev.button(), pos)
+            self._press = IgnorePress()
             return
-        if self._drag is not None:  # another button during a drag: ignore it
+        if self.node_drag.active:  # another button during a drag: ignore it
             return
         if ev.button() == Qt.MouseButton.LeftButton:
-            row = self.node_at(pos)
+            row = self.camera_control.node_at(pos)
             if (row < 0 or row in self.selection) and not shift and self._gizmo_press(pos):
                 return
-            if not shift and self._handle_press(pos):
-                self.hold_proxy()
+            handle = None if shift else self.handle_tool.press(pos)
+            if handle is not None:
+                self._press = handle
+                self.model_frames.hold_proxy()
                 return
             if row >= 0:
                 if shift:
                     self.selectRequested.emit([row], "toggle")
                     self._press = IgnorePress()
                     return
-                self.hold_proxy()  # a drag may follow: what the press redraws is the proxy
+                self.model_frames.hold_proxy()  # a drag may follow: the press draws a proxy
                 if row not in self.selection:
                     self.selectRequested.emit([row], "replace")
                 self._press = NodePress(row, pos)
                 return
             ctrl = bool(ev.modifiers() & Qt.KeyboardModifier.ControlModifier)
-            if (self.handle_mode or ctrl) and not shift and self._model_press(pos):
-                self.hold_proxy()
-                return
+            if (self.handle_tool.active or ctrl) and not shift:
+                placing = self.handle_tool.model_press(pos)
+                if placing is not None:
+                    self._press = placing
+                    self.model_frames.hold_proxy()
+                    return
             if shift or self.box_mode:
                 self._press = BoxPress(pos, shift)
                 self._band.setGeometry(QRect(pos.toPoint(), QSize()))
@@ -299,42 +399,42 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
         pos = ev.position()
         self._mouse = QPointF(pos)
         press = self._press
-        if self._transform is not None:
-            self._transform_mouse(pos)
+        if self.transform_tool.running:
+            self.transform_tool.mouse(pos)
             return
-        if self._drag is not None and isinstance(press, IgnorePress):  # a gizmo arrow
-            self._update_drag(pos)
+        if self.node_drag.active and isinstance(press, IgnorePress):  # a gizmo arrow
+            self.node_drag.move(pos)
             return
         if press is None:
             self._hover(pos)
             super().mouseMoveEvent(ev)
         elif isinstance(press, NodePress):
-            if self._drag is None:
+            if not self.node_drag.active:
                 if (pos - press.pos).manhattanLength() < DRAG_THRESHOLD:
                     return
-                anchor = self.nodes[press.row].copy()
-                _, depth, _ = self.projection().project(anchor)
-                self._drag = NodeDrag(press.pos, anchor, float(depth[0]), press.pos)
-                self.dragStarted.emit()
-            self._update_drag(pos)
+                self.node_drag.begin(press.pos, self.nodes[press.row].copy())
+            self.node_drag.move(pos)
         elif isinstance(press, (HandlePress, ModelPress)):
-            self._handle_move(press, pos)
+            self.handle_tool.move(press, pos)
         elif isinstance(press, BoxPress):
             self._band.setGeometry(QRect(press.pos.toPoint(), pos.toPoint()).normalized())
         elif not isinstance(press, IgnorePress):
             super().mouseMoveEvent(ev)
 
     def mouseReleaseEvent(self, ev) -> None:
-        dragged = self._drag is not None
+        dragged = self.node_drag.active
         self._release(ev)
-        self.end_press(dragged)
+        # a press that drew the proxy and dragged nothing: draw what the window draws when
+        # nothing is pressed (a drag's end brings its own frames)
+        if self.model_frames.release() and not dragged and not self.dragging:
+            self.set_frame(self.nodes, self.model_frames.moving())
+            self.update()
 
     def _release(self, ev) -> None:
         pos = ev.position()
         press, self._press = self._press, None
-        if self._drag is not None and isinstance(press, IgnorePress):  # a gizmo arrow
-            self._update_drag(pos)
-            self._end_drag()
+        if self.node_drag.active and isinstance(press, IgnorePress):  # a gizmo arrow
+            self.node_drag.end(pos)
             return
         if press is None or isinstance(press, IgnorePress):
             if press is None:
@@ -343,18 +443,18 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
             return
         moved = (pos - press.pos).manhattanLength() >= DRAG_THRESHOLD
         if isinstance(press, NodePress):
-            if self._drag is not None:
-                self._update_drag(pos)
-                self._end_drag()
+            if self.node_drag.active:
+                self.node_drag.end(pos)
             elif len(self.selection) > 1:
                 self.selectRequested.emit([press.row], "replace")
         elif isinstance(press, (HandlePress, ModelPress)):
-            self._handle_release(press, pos)
+            self.handle_tool.release(press, pos)
         elif isinstance(press, BoxPress):
             self._band.hide()
-            rows = self.nodes_in_rect(QRect(press.pos.toPoint(), pos.toPoint()).normalized())
+            rect = QRect(press.pos.toPoint(), pos.toPoint()).normalized()
+            rows = self.camera_control.nodes_in_rect(rect)
             if self.visible_only:
-                rows = self.visible_rows(rows)
+                rows = self.camera_control.visible_rows(rows)
             self.selectRequested.emit(rows, "add" if press.add else "replace")
         elif isinstance(press, CameraPress):
             super().mouseReleaseEvent(ev)
@@ -362,12 +462,13 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
                 self.selectRequested.emit([], "replace")
         elif isinstance(press, ContextPress):
             super().mouseReleaseEvent(ev)
-            if not moved and not self._handle_context(pos):
-                self.contextMenuRequested.emit(self.node_at(pos), self.mapToGlobal(pos.toPoint()))
+            at = self.mapToGlobal(pos.toPoint())
+            if not moved and not self.handle_tool.context(pos, at):
+                self.contextMenuRequested.emit(self.camera_control.node_at(pos), at)
         self._hover(pos)
 
     def _hover(self, pos: QPointF) -> None:
-        self.setCursor(self._cursor(pos))
+        self.setCursor(self.handle_tool.cursor(pos))
 
     # -- files dropped on the view (pyvistaqt would add them as extra actors) ----------------
     @staticmethod
@@ -393,15 +494,16 @@ class Viewport(ToolsMixin, HandleViewMixin, ModelDrawMixin, CameraMixin, QtInter
 
     def keyPressEvent(self, ev) -> None:
         key = ev.key()
-        if self._transform is not None and self._transform_key(ev):
+        if self.transform_tool.running and self.transform_tool.key(ev):
             return
-        if self._drag is not None and not ev.isAutoRepeat():
+        if self.node_drag.active and not ev.isAutoRepeat():
             axis = {Qt.Key.Key_X: "x", Qt.Key.Key_Y: "y", Qt.Key.Key_Z: "z"}.get(key)
             if axis is not None:
-                self.set_lock(axis, bool(ev.modifiers() & Qt.KeyboardModifier.ShiftModifier))
+                shift = bool(ev.modifiers() & Qt.KeyboardModifier.ShiftModifier)
+                self.node_drag.set_lock(axis, shift)
                 return
         if key == Qt.Key.Key_Escape:
-            if self._drag is not None:
+            if self.node_drag.active:
                 self.cancel_drag()
             elif isinstance(self._press, BoxPress):
                 self._band.hide()

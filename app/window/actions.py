@@ -2,18 +2,26 @@
 
 Every command the user can give is one ``QAction`` on the window (so its shortcut works while
 the menus are closed); menus, the toolbar, the context menu and the panel's buttons share
-them. Built once by :func:`build` for a :class:`~isochor.app.window.mainwindow.MainWindow`.
+them. :class:`ActionSet` holds them all, for a
+:class:`~isochor.app.window.mainwindow.MainWindow` whose parts (the session, the view, the
+file commands, the node, handle and timeline tools) their slots call; it builds the menus
+(:meth:`ActionSet.build_menus`) and the toolbar (:meth:`ActionSet.build_toolbar`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from pathlib import Path
+
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import QToolBar
+from PySide6.QtWidgets import QDockWidget, QMainWindow, QMenu, QMenuBar, QToolBar
 
 from ...core.scenario.examples import EXAMPLES
 from ..editor import goalrules, noderules
-from . import handletools, timelinetools, tools
+from ..editor.transform import VERBS
+from .goalbox import ANCHOR_TIP, CENTROID_TIP, FOLD_TIP, VOLUME_TIP
+from .handlebox import TOOL_TIP
 
 #: (name, shortcut) of the standard views
 VIEWS = (
@@ -26,279 +34,439 @@ VIEWS = (
     ("bottom", "Ctrl+7"),
 )
 
-
-def _action(
-    win, text, slot=None, shortcut=None, checkable=False, checked=False, tip=None
-) -> QAction:
-    a = QAction(text, win)
-    if shortcut is not None:
-        a.setShortcuts(shortcut if isinstance(shortcut, list) else [shortcut])
-    if checkable:
-        a.setCheckable(True)
-        a.setChecked(checked)
-    if tip:
-        a.setToolTip(tip)
-        a.setStatusTip(tip)
-    if slot is not None:
-        (a.toggled if checkable else a.triggered).connect(slot)
-    win.addAction(a)  # shortcuts work while the menus are closed
-    return a
+K = QKeySequence
 
 
-def build(win) -> None:
-    """Create the actions as ``win.act_*``, then the menus and the toolbar."""
-    _build_actions(win)
-    _build_menus(win)
-    _build_toolbar(win)
+class ActionSet:
+    """The actions of one window, by name: ``win.action_set.save``,
+    ``win.action_set.pin_axes[0]`` (not ``win.actions``: that is QWidget's list).
 
+    Every action is added to the window (its shortcut works while the menus are closed);
+    the timeline's arrow and Space keys only in the view and on the scrubber, where other
+    widgets do not want them.
+    """
 
-def _build_actions(win) -> None:
-    def A(*args, **kwargs):
-        return _action(win, *args, **kwargs)
-
-    K = QKeySequence  # noqa: N806
-    s, vp = win.session, win.viewport
-    win.act_open = A(
-        "&Open…",
-        win.files.open_dialog,
-        K.StandardKey.Open,
-        tip="Open a model (OBJ, PLY, STL, OFF) or a scenario (.json)",
-    )
-    win.act_save = A("&Save Scenario", win.files.save, K.StandardKey.Save)
-    win.act_save_as = A("Save Scenario &As…", win.files.save_as, K("Ctrl+Shift+S"))
-    win.act_export = A(
-        "&Export Deformed Mesh…",
-        win.files.export_dialog,
-        K("Ctrl+E"),
-        tip="Write the deformed full-resolution mesh (OBJ, PLY, STL)",
-    )
-    win.act_quit = A("&Quit", win.close, K.StandardKey.Quit)
-    win.act_undo = s.undo_stack.createUndoAction(win, "&Undo")
-    win.act_undo.setShortcuts([K("Ctrl+Z")])
-    win.act_redo = s.undo_stack.createRedoAction(win, "&Redo")
-    win.act_redo.setShortcuts([K("Ctrl+Shift+Z"), K("Ctrl+Y")])
-    win.addAction(win.act_undo)
-    win.addAction(win.act_redo)
-    win.act_select_all = A("Select &All Nodes", lambda: win.doc.selection.all(), K("Ctrl+A"))
-    win.act_pin = A(
-        "Toggle &Pin",
-        win.toggle_pin,
-        K("P"),
-        tip="Pin the selected nodes, or unpin them if all are fixed",
-    )
-    win.act_pin_all = A("Pin All", lambda: win.set_pins(None, True))
-    win.act_unpin_all = A("Unpin All", lambda: win.set_pins(None, False))
-    win.act_reset = A(
-        "Reset Nodes",
-        lambda: s.commit(noderules.edit_reset(win.doc.base())),
-        tip="Every node back to rest, no pins",
-    )
-    win.act_box = A(
-        "&Box Select",
-        lambda on: setattr(vp, "box_mode", bool(on)),
-        K("B"),
-        checkable=True,
-        tip="Drag a box to select nodes (Shift-drag does it any time)",
-    )
-    win.act_preserve = A(
-        "Preserve &Volume",
-        s.set_preserve,
-        K("V"),
-        checkable=True,
-        checked=True,
-        tip="Off: plain FFD, the nodes stay where you put them",
-    )
-    win.act_live = A(
-        "&Live Solve",
-        lambda on: setattr(s, "live", bool(on)),
-        K("L"),
-        checkable=True,
-        tip="Solve continuously while a node is dragged",
-    )
-    win.act_pin_axes = [
-        A(
-            f"Pin on {axis.upper()} Only",
-            lambda _=False, a=axis: win.pin_on(a),
-            tip=f"Pin the selected nodes on {axis} only: the solver keeps their {axis} "
-            "and moves them on the other axes",
+    def __init__(self, win) -> None:
+        self.window: QMainWindow = win
+        s, vp, files = win.session, win.viewport, win.files
+        A = self._new  # noqa: N806
+        # -- File
+        self.open = A(
+            "&Open…",
+            files.open_dialog,
+            K.StandardKey.Open,
+            tip="Open a model (OBJ, PLY, STL, OFF) or a scenario (.json)",
         )
-        for axis in "xyz"
-    ]
-    _goal_actions(win)
-    win.act_solve = A("&Solve Again", win.solve_again, K("Ctrl+R"))
-    win.act_stop = A("S&top Solve", s.stop_solve, K("Ctrl+."))
-    win.act_frame = A(
-        "&Frame Selection",
-        vp.frame_selection,
-        K("F"),
-        tip="Fit the selected nodes in the view (the whole model when nothing is selected)",
-    )
-    tools.build(win, A)
-    handletools.build(win, A)
-    timelinetools.build(win, A)
-    win.act_views = {
-        name: A(f"{name.title()} View", lambda _=False, n=name: vp.standard_view(n), K(key))
-        for name, key in VIEWS
-    }
-    win.act_lattice = A("Show &Lattice", win.display_changed, checkable=True, checked=True)
-    win.act_diag = A("Show Diagonal Springs", win.display_changed, checkable=True)
-    win.act_ghost = A("Show &Ghost of the Original", win.display_changed, checkable=True)
-    win.act_smooth = A("&Smooth Shading", win.display_changed, checkable=True, checked=True)
-    win.act_help = A("&Controls", win.show_controls, K("F1"))
-    win.act_about = A("&About Isochor", win.show_about)
+        self.save = A("&Save Scenario", files.save, K.StandardKey.Save)
+        self.save_as = A("Save Scenario &As…", files.save_as, K("Ctrl+Shift+S"))
+        self.export = A(
+            "&Export Deformed Mesh…",
+            files.export_dialog,
+            K("Ctrl+E"),
+            tip="Write the deformed full-resolution mesh (OBJ, PLY, STL)",
+        )
+        self.quit = A("&Quit", win.close, K.StandardKey.Quit)
+        # -- Edit
+        self.undo = s.undo_stack.createUndoAction(win, "&Undo")
+        self.undo.setShortcuts([K("Ctrl+Z")])
+        self.redo = s.undo_stack.createRedoAction(win, "&Redo")
+        self.redo.setShortcuts([K("Ctrl+Shift+Z"), K("Ctrl+Y")])
+        win.addAction(self.undo)
+        win.addAction(self.redo)
+        self.select_all = A("Select &All Nodes", lambda: win.doc.selection.all(), K("Ctrl+A"))
+        self.pin = A(
+            "Toggle &Pin",
+            win.toggle_pin,
+            K("P"),
+            tip="Pin the selected nodes, or unpin them if all are fixed",
+        )
+        self.pin_all = A("Pin All", lambda: win.set_pins(None, True))
+        self.unpin_all = A("Unpin All", lambda: win.set_pins(None, False))
+        self.reset = A(
+            "Reset Nodes",
+            lambda: s.commit(noderules.edit_reset(win.doc.base())),
+            tip="Every node back to rest, no pins",
+        )
+        self.box = A(
+            "&Box Select",
+            vp.set_box_mode,
+            K("B"),
+            checkable=True,
+            tip="Drag a box to select nodes (Shift-drag does it any time)",
+        )
+        self.preserve = A(
+            "Preserve &Volume",
+            s.set_preserve,
+            K("V"),
+            checkable=True,
+            checked=True,
+            tip="Off: plain FFD, the nodes stay where you put them",
+        )
+        self.live = A(
+            "&Live Solve",
+            s.set_live,
+            K("L"),
+            checkable=True,
+            tip="Solve continuously while a node is dragged",
+        )
+        self.pin_axes = [
+            A(
+                f"Pin on {axis.upper()} Only",
+                lambda _=False, a=axis: win.pin_on(a),
+                tip=f"Pin the selected nodes on {axis} only: the solver keeps their {axis} "
+                "and moves them on the other axes",
+            )
+            for axis in "xyz"
+        ]
+        self._goal_actions(win)
+        self.solve = A("&Solve Again", win.solve_again, K("Ctrl+R"))
+        self.stop = A("S&top Solve", s.stop_solve, K("Ctrl+."))
+        self.frame = A(
+            "&Frame Selection",
+            vp.camera_control.frame_selection,
+            K("F"),
+            tip="Fit the selected nodes in the view (the whole model when nothing is selected)",
+        )
+        self._node_tools(win)
+        self.ortho = A(
+            "&Orthographic",
+            vp.camera_control.set_orthographic,
+            K("5"),
+            checkable=True,
+            tip="Parallel projection (on) or perspective (off)",
+        )
+        self.handle_tool = A(
+            "&Handle Tool",
+            vp.handle_tool.set_active,
+            K("H"),
+            checkable=True,
+            tip=TOOL_TIP,
+        )
+        self.remove_handle = A(
+            "&Remove Handle",
+            win.handle_tools.remove_handle,
+            [K("Delete"), K("Backspace")],
+            tip="Remove the selected surface handle",
+        )
+        self._timeline_actions(win)
+        self.views = {
+            name: A(
+                f"{name.title()} View",
+                lambda _=False, n=name: vp.camera_control.standard_view(n),
+                K(key),
+            )
+            for name, key in VIEWS
+        }
+        self.lattice = A("Show &Lattice", win.display_changed, checkable=True, checked=True)
+        self.diag = A("Show Diagonal Springs", win.display_changed, checkable=True)
+        self.ghost = A("Show &Ghost of the Original", win.display_changed, checkable=True)
+        self.smooth = A("&Smooth Shading", win.display_changed, checkable=True, checked=True)
+        # -- Help
+        self.help = A("&Controls", win.show_controls, K("F1"))
+        self.about = A("&About Isochor", win.show_about)
 
+    def _new(
+        self,
+        text: str,
+        slot: Callable | None = None,
+        shortcut=None,
+        checkable: bool = False,
+        checked: bool = False,
+        tip: str | None = None,
+    ) -> QAction:
+        """An action on the window: ``slot`` gets its trigger (or its toggle, checkable)."""
+        win = self.window
+        a = QAction(text, win)
+        if shortcut is not None:
+            a.setShortcuts(shortcut if isinstance(shortcut, list) else [shortcut])
+        if checkable:
+            a.setCheckable(True)
+            a.setChecked(checked)
+        if tip:
+            a.setToolTip(tip)
+            a.setStatusTip(tip)
+        if slot is not None:
+            (a.toggled if checkable else a.triggered).connect(slot)
+        win.addAction(a)  # shortcuts work while the menus are closed
+        return a
 
-def _goal_actions(win) -> None:
-    """The goal's settings as checkable actions: a user's trigger commits one undoable edit
-    (the window keeps their check marks in step with the state)."""
-    from .goalbox import ANCHOR_TIP, CENTROID_TIP, FOLD_TIP, VOLUME_TIP
+    def _node_tools(self, win) -> None:
+        """Grab, rotate, scale; the selection helpers (:mod:`isochor.app.window.tools`)."""
+        A = self._new  # noqa: N806
+        tools, vp = win.node_tools, win.viewport
+        self.transform = {
+            mode: A(
+                f"{VERBS[mode] if mode != 'grab' else 'Grab'}",
+                lambda _=False, m=mode: tools.start_transform(m),
+                K(key),
+                tip=f"{tip} the selected nodes about their centre with the mouse; X/Y/Z lock "
+                "an axis, type a value, Enter confirms, Esc cancels",
+            )
+            for mode, key, tip in (
+                ("grab", "G", "Move"),
+                ("rotate", "R", "Rotate"),
+                ("scale", "S", "Scale"),
+            )
+        }
+        self.select_layer = [
+            A(
+                f"Layer Across {a.upper()}",
+                lambda _=False, i=i: tools.select_layer(i),
+                tip=f"Select every node with the same {'ijk'[i]} as a selected node",
+            )
+            for i, a in enumerate("xyz")
+        ]
+        self.select_line = [
+            A(
+                f"Row Along {a.upper()}",
+                lambda _=False, i=i: tools.select_line(i),
+                tip=f"Select the lattice rows along {a} through the selected nodes",
+            )
+            for i, a in enumerate("xyz")
+        ]
+        self.select_face = A(
+            "Face of the Lattice",
+            tools.select_face,
+            tip="Select the lattice face that holds the selected nodes",
+        )
+        self.invert = A("&Invert Selection", lambda: win.doc.selection.inverse(), K("Ctrl+I"))
+        self.visible_only = A(
+            "Select &Visible Only",
+            vp.set_visible_only,
+            checkable=True,
+            tip="Box selection skips the nodes the model hides from the camera",
+        )
 
-    doc = lambda: win.doc  # noqa: E731 (the window's document changes when a file opens)
-    rules = {
-        "anchor": (
-            "&Hold Far Side",
-            ANCHOR_TIP,
-            True,
-            lambda on: goalrules.edit_anchor(doc().base(), on),
-        ),
-        "centroid": (
+    def _goal_actions(self, win) -> None:
+        """The goal's settings as checkable actions: a user's trigger commits one undoable
+        edit (the readout keeps their check marks in step with the state)."""
+        doc = lambda: win.doc  # noqa: E731 (the window's document changes when a file opens)
+
+        def goal(text: str, tip: str, checked: bool, rule) -> QAction:
+            a = self._new(text, checkable=True, checked=checked, tip=tip)
+            a.triggered.connect(lambda on, rule=rule: win.commit_edit(rule(on)))
+            return a
+
+        self.anchor = goal(
+            "&Hold Far Side", ANCHOR_TIP, True, lambda on: goalrules.edit_anchor(doc().base(), on)
+        )
+        self.centroid = goal(
             "&Keep Centre of Mass",
             CENTROID_TIP,
             False,
             lambda on: goalrules.edit_keep_centroid(doc().base(), on),
-        ),
-        "per_body": (
+        )
+        self.per_body = goal(
             "Preserve &Each Body",
             VOLUME_TIP,
             False,
             lambda on: goalrules.edit_preserve(doc().base(), "per-body" if on else "total"),
-        ),
-        "fold_guard": (
-            "&Fold Guard",
-            FOLD_TIP,
-            True,
-            lambda on: goalrules.edit_fold_guard(doc().base(), on),
-        ),
-    }
-    for name, (text, tip, checked, rule) in rules.items():
-        a = _action(win, text, checkable=True, checked=checked, tip=tip)
-        a.triggered.connect(lambda on, rule=rule: win.commit_edit(rule(on)))
-        setattr(win, f"act_{name}", a)
-
-
-def _build_menus(win) -> None:
-    from ... import assets
-
-    mb = win.menuBar()
-    m = mb.addMenu("&File")
-    m.addAction(win.act_open)
-    ex = m.addMenu("Open &Example")
-    files = assets.example_files()
-    for name, text in EXAMPLES.items():
-        ex.addAction(text, lambda _=False, p=files[name]: win.files.open_example(p))
-    ex.addSeparator()
-    for name, path in assets.model_files().items():
-        ex.addAction(
-            f"The {name} as a mesh file ({path.name})",
-            lambda _=False, p=path: win.files.open_example(p),
         )
-    m.addSeparator()
-    for a in (win.act_save, win.act_save_as, win.act_export):
-        m.addAction(a)
-    m.addSeparator()
-    m.addAction(win.act_quit)
-    m = mb.addMenu("&Edit")
-    for a in (
-        win.act_undo,
-        win.act_redo,
-        None,
-        win.act_select_all,
-        win.act_box,
-        None,
-        "tools",
-        None,
-        win.act_pin,
-        *win.act_pin_axes,
-        win.act_pin_all,
-        win.act_unpin_all,
-        win.act_reset,
-    ):
-        if a == "tools":
-            tools.add_to_edit_menu(win, m)
-            m.addAction(win.act_handle_tool)
-            m.addAction(win.act_remove_handle)
-        else:
-            m.addSeparator() if a is None else m.addAction(a)
-    m = mb.addMenu("&Solve")
-    for a in (
-        win.act_preserve,
-        win.act_live,
-        win.act_solve,
-        win.act_stop,
-        None,
-        win.act_anchor,
-        win.act_centroid,
-        win.act_per_body,
-        win.act_fold_guard,
-    ):
-        m.addSeparator() if a is None else m.addAction(a)
-    m = mb.addMenu("&View")
-    m.addAction(win.act_frame)
-    m.addAction(win.act_ortho)
-    for a in win.act_views.values():
-        m.addAction(a)
-    m.addSeparator()
-    for a in (win.act_lattice, win.act_diag, win.act_ghost, win.act_smooth):
-        m.addAction(a)
-    m.addSeparator()
-    m.addAction(win.inspector_dock.toggleViewAction())
-    m.addAction(win.plot_dock.toggleViewAction())
-    m.addAction(win.timeline_dock.toggleViewAction())
-    timelinetools.add_menu(win, mb)
-    m = mb.addMenu("&Help")
-    m.addAction(win.act_help)
-    m.addAction(win.act_about)
+        self.fold_guard = goal(
+            "&Fold Guard", FOLD_TIP, True, lambda on: goalrules.edit_fold_guard(doc().base(), on)
+        )
+
+    def _timeline_actions(self, win) -> None:
+        """Keys, the playhead and playing (:mod:`isochor.app.window.timelinetools`)."""
+        tool, vp = win.timeline, win.viewport
+        self.set_key = self._new(
+            "Set &Key", tool.set_key, K("I"), tip="Key the working pose at the current frame"
+        )
+        self.remove_key = self._new(
+            "&Remove Key", tool.remove_key, K("Alt+I"), tip="Remove the key at the current frame"
+        )
+
+        def local(text: str, slot: Callable, key: str) -> QAction:
+            """An action whose keys other widgets use too (arrows, Space): only in the view
+            and on the scrubber."""
+            a = self._new(text, slot)
+            a.setShortcut(K(key))
+            a.setShortcutContext(Qt.ShortcutContext.WidgetWithChildrenShortcut)
+            win.removeAction(a)
+            vp.addAction(a)
+            tool.panel.scrubber.addAction(a)
+            return a
+
+        self.prev_key = local("&Previous Key", lambda: tool.jump_key(-1), "Down")
+        self.next_key = local("&Next Key", lambda: tool.jump_key(+1), "Up")
+        self.prev_frame = local("Previous &Frame", lambda: tool.step(-1), "Left")
+        self.next_frame = local("Next F&rame", lambda: tool.step(+1), "Right")
+        self.first = local("&Start of the Range", lambda: tool.go_to_end(-1), "Shift+Left")
+        self.last = local("&End of the Range", lambda: tool.go_to_end(+1), "Shift+Right")
+        self.play = local("&Play / Pause", tool.toggle_play, "Space")
+        self.play.setToolTip("Play the solved frames at the frame rate, looping (Space)")
+        tool.panel.use_actions(
+            {
+                "first": self.first,
+                "prev_key": self.prev_key,
+                "play": self.play,
+                "next_key": self.next_key,
+                "last": self.last,
+                "set_key": self.set_key,
+                "remove_key": self.remove_key,
+            }
+        )
+
+    # -- menus and toolbar ------------------------------------------------------------------------
+    def build_menus(self, mb: QMenuBar, files, docks: list[QDockWidget]) -> None:
+        """The menu bar: File, Edit, Solve, View (with ``docks``' toggles), Timeline, Help;
+        ``files``: the window's file commands (the examples open with them)."""
+        from ... import assets
+
+        def opens(path: Path) -> Callable[..., object]:
+            return lambda _=False: files.open_example(path)
+
+        m = mb.addMenu("&File")
+        m.addAction(self.open)
+        ex = m.addMenu("Open &Example")
+        paths = assets.example_files()
+        for name, text in EXAMPLES.items():
+            ex.addAction(text, opens(paths[name]))
+        ex.addSeparator()
+        for name, path in assets.model_files().items():
+            ex.addAction(f"The {name} as a mesh file ({path.name})", opens(path))
+        m.addSeparator()
+        for a in (self.save, self.save_as, self.export):
+            m.addAction(a)
+        m.addSeparator()
+        m.addAction(self.quit)
+        m = mb.addMenu("&Edit")
+        edit: tuple[QAction | str | None, ...] = (
+            self.undo,
+            self.redo,
+            None,
+            self.select_all,
+            self.box,
+            None,
+            "tools",
+            None,
+            self.pin,
+            *self.pin_axes,
+            self.pin_all,
+            self.unpin_all,
+            self.reset,
+        )
+        for entry in edit:
+            if isinstance(entry, str):  # "tools"
+                self._tool_menus(m)
+                m.addAction(self.handle_tool)
+                m.addAction(self.remove_handle)
+            else:
+                _add(m, entry)
+        m = mb.addMenu("&Solve")
+        solve: tuple[QAction | None, ...] = (
+            self.preserve,
+            self.live,
+            self.solve,
+            self.stop,
+            None,
+            self.anchor,
+            self.centroid,
+            self.per_body,
+            self.fold_guard,
+        )
+        for entry in solve:
+            _add(m, entry)
+        m = mb.addMenu("&View")
+        m.addAction(self.frame)
+        m.addAction(self.ortho)
+        for a in self.views.values():
+            m.addAction(a)
+        m.addSeparator()
+        for a in (self.lattice, self.diag, self.ghost, self.smooth):
+            m.addAction(a)
+        m.addSeparator()
+        for dock in docks:
+            m.addAction(dock.toggleViewAction())
+        m = mb.addMenu("&Timeline")
+        timeline: tuple[QAction | None, ...] = (
+            self.set_key,
+            self.remove_key,
+            None,
+            self.play,
+            self.prev_key,
+            self.next_key,
+            self.prev_frame,
+            self.next_frame,
+            self.first,
+            self.last,
+        )
+        for entry in timeline:
+            _add(m, entry)
+        m = mb.addMenu("&Help")
+        m.addAction(self.help)
+        m.addAction(self.about)
+
+    def _tool_menus(self, menu: QMenu) -> None:
+        """The Transform and Select submenus."""
+        m = menu.addMenu("&Transform")
+        for a in self.transform.values():
+            m.addAction(a)
+        m = menu.addMenu("Se&lect")
+        select: tuple[QAction | None, ...] = (
+            *self.select_layer,
+            None,
+            *self.select_line,
+            None,
+            self.select_face,
+        )
+        for entry in select:
+            _add(m, entry)
+        m.addSeparator()
+        m.addAction(self.invert)
+        m.addAction(self.visible_only)
+
+    def build_toolbar(self) -> QToolBar:
+        """The window's toolbar (text buttons)."""
+        win = self.window
+        tb = QToolBar("Main", win)
+        tb.setObjectName("main-toolbar")
+        tb.setMovable(False)
+        tb.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+        win.addToolBar(tb)
+        for action, text in (
+            (self.open, "Open"),
+            (self.save, "Save"),
+            (self.export, "Export"),
+            (self.undo, "Undo"),
+            (self.redo, "Redo"),
+            (self.box, "Box select"),
+            (self.pin, "Pin"),
+            (self.handle_tool, "Handle"),
+            (self.preserve, "Preserve volume"),
+            (self.live, "Live"),
+            (self.frame, "Frame"),
+        ):
+            action.setIconText(text)
+        buttons: tuple[QAction | None, ...] = (
+            self.open,
+            self.save,
+            self.export,
+            None,
+            self.undo,
+            self.redo,
+            None,
+            self.box,
+            self.pin,
+            self.handle_tool,
+            None,
+            self.preserve,
+            self.live,
+            None,
+            self.frame,
+        )
+        for entry in buttons:
+            _add(tb, entry)
+        for name in ("home", "front", "right", "top"):
+            a = self.views[name]
+            a.setIconText(name.title())
+            tb.addAction(a)
+        return tb
 
 
-def _build_toolbar(win) -> None:
-    tb = QToolBar("Main", win)
-    tb.setObjectName("main-toolbar")
-    tb.setMovable(False)
-    tb.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
-    win.addToolBar(tb)
-    for action, text in (
-        (win.act_open, "Open"),
-        (win.act_save, "Save"),
-        (win.act_export, "Export"),
-        (win.act_undo, "Undo"),
-        (win.act_redo, "Redo"),
-        (win.act_box, "Box select"),
-        (win.act_pin, "Pin"),
-        (win.act_handle_tool, "Handle"),
-        (win.act_preserve, "Preserve volume"),
-        (win.act_live, "Live"),
-        (win.act_frame, "Frame"),
-    ):
-        action.setIconText(text)
-    for a in (
-        win.act_open,
-        win.act_save,
-        win.act_export,
-        None,
-        win.act_undo,
-        win.act_redo,
-        None,
-        win.act_box,
-        win.act_pin,
-        win.act_handle_tool,
-        None,
-        win.act_preserve,
-        win.act_live,
-        None,
-        win.act_frame,
-    ):
-        tb.addSeparator() if a is None else tb.addAction(a)
-    for name in ("home", "front", "right", "top"):
-        a = win.act_views[name]
-        a.setIconText(name.title())
-        tb.addAction(a)
+def _add(menu: QMenu | QToolBar, action: QAction | None) -> None:
+    """Add ``action`` to a menu or toolbar (None: a separator)."""
+    if action is None:
+        menu.addSeparator()
+    else:
+        menu.addAction(action)

@@ -121,7 +121,7 @@ class FileCommands:
     def _loaded(self, doc: Document, mark) -> None:
         """A background load is done: show ``doc``, unless the window has closed meanwhile
         or the user edited the current document and now keeps it."""
-        if getattr(self.win, "_closed", False):
+        if self.win.closed:
             return
         doc_then, cell_then, saved_then = mark
         kept = doc_then is self.doc and cell_then is self.doc.cell

@@ -4,10 +4,13 @@ The window holds no editing state. The :class:`~isochor.app.session.controller.E
 the document, the undo stack, the solver worker and the frame schedule; the window turns what
 the user does into calls on it (edits come from the document's rules) and draws what its
 signals say: the view (:mod:`isochor.app.view.viewport`), the Inspector panel, the convergence
-plot; the status bar, the notes and the marks on the view are :mod:`isochor.app.window.readout`.
-Menus and the toolbar are :mod:`isochor.app.window.actions`; the file commands
-:mod:`isochor.app.window.files`; the frames (a big model's proxy while it moves)
-:mod:`isochor.app.window.framedraw`.
+plot. It is composed of parts it holds as fields: the status bar, the notes and the marks on
+the view (``readout``, :mod:`isochor.app.window.readout`); the actions, menus and toolbar
+(``action_set``, :mod:`isochor.app.window.actions`); the file commands (``files``,
+:mod:`isochor.app.window.files`); the frames, a big model's proxy while it moves
+(``frames``, :mod:`isochor.app.window.framedraw`); the node tools, the handles and the
+timeline (``node_tools``, ``handle_tools``, ``timeline``: :mod:`isochor.app.window.tools`,
+:mod:`isochor.app.window.handletools`, :mod:`isochor.app.window.timelinetools`).
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from __future__ import annotations
 import sys
 
 from PySide6.QtCore import QPoint, Qt, QTimer, Signal
-from PySide6.QtGui import QIcon
+from PySide6.QtGui import QAction, QIcon
 from PySide6.QtWidgets import QDockWidget, QMainWindow, QMenu, QMessageBox, QScrollArea
 
 from ... import assets
@@ -24,16 +27,28 @@ from ..editor import goalrules, latticerules, noderules
 from ..editor.document import Document, plural
 from ..session.controller import EditorSession
 from ..view.viewport import Viewport
-from . import actions, handletools, tools
+from .actions import ActionSet
 from .files import FileCommands
-from .framedraw import FramesMixin
+from .framedraw import FrameDrawer
+from .handletools import HandleTools
 from .panel import Panel, bind
 from .plot import ConvergencePlot
 from .readout import Readout
+from .timelinetools import TimelineTool
+from .tools import CONTROLS_HTML, NodeTools
 
 
-class MainWindow(FramesMixin, QMainWindow):
+class MainWindow(QMainWindow):
     """The editor window.
+
+    Parameters
+    ----------
+    document : the document to edit (None: the built-in example)
+
+    Attributes
+    ----------
+    headless_errors : errors go to stderr, not to dialogs (:meth:`set_headless_errors`)
+    closed : shut down (:meth:`shutdown`): nothing may reach the window any more
 
     Signals
     -------
@@ -49,23 +64,27 @@ class MainWindow(FramesMixin, QMainWindow):
         self.setWindowTitle("Isochor")
         self.setWindowIcon(QIcon(str(assets.icon_path())))
         self.resize(1360, 860)
-        self.headless_errors = False  # screenshot mode: errors to stderr, no dialogs
-        self.redraws = 0  # frames drawn (the tests read it)
-        self._frame_after_solve = False
-        self._closed = False
-        self.viewport = Viewport(self)
-        self.setCentralWidget(self.viewport)
+        self.headless_errors = False
+        self.closed = False
         self.session = EditorSession(document if document is not None else Document.example(), self)
         # a paint outside a frame (Qt's, after a mouse move or an overlay change) holds the
         # solver too, like a frame does (see isochor.app.session.worker)
-        self.viewport.paint_hold = self.session.worker.held
+        self.viewport = Viewport(self, paint_hold=self.session.worker.held)
+        self.setCentralWidget(self.viewport)
         self.files = FileCommands(self)
         self.panel = Panel()
-        self.plot = ConvergencePlot()
-        self.plot.deferred = True  # repainted with the frames (_draw)
-        self._build_docks()
-        actions.build(self)
+        self.plot = ConvergencePlot(deferred=True)  # repainted with the frames
         self.readout = Readout(self)
+        self.frames = FrameDrawer(self)
+        self.node_tools = NodeTools(self)
+        self.handle_tools = HandleTools(self)
+        self.timeline = TimelineTool(self)
+        self._build_docks()
+        self.action_set = ActionSet(self)
+        self.action_set.build_menus(
+            self.menuBar(), self.files, [self.inspector_dock, self.plot_dock, self.timeline_dock]
+        )
+        self.action_set.build_toolbar()
         self._connect()
         self._document_loaded()
         self._status_changed()
@@ -116,24 +135,34 @@ class MainWindow(FramesMixin, QMainWindow):
         )
         self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, self.plot_dock)
         self.resizeDocks([self.plot_dock], [190], Qt.Orientation.Vertical)
+        self.timeline_dock = QDockWidget("Timeline", self)
+        self.timeline_dock.setObjectName("timeline")
+        self.timeline_dock.setWidget(self.timeline.panel)
+        self.timeline_dock.setFeatures(
+            features.DockWidgetMovable | features.DockWidgetFloatable | features.DockWidgetClosable
+        )
+        self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, self.timeline_dock)
+        self.splitDockWidget(self.plot_dock, self.timeline_dock, Qt.Orientation.Vertical)
 
     def _connect(self) -> None:
         s, vp, p = self.session, self.viewport, self.panel
+        acts, frames = self.action_set, self.frames
         s.documentLoaded.connect(self._document_loaded)
         s.sceneChanged.connect(self._scene_changed)
         s.stateChanged.connect(self._state_changed)
         s.selectionChanged.connect(self._selection_changed)
         s.statusChanged.connect(self._status_changed)
-        self.act_preserve.toggled.connect(lambda _: self.readout.show_state())
-        s.frameReady.connect(self._draw)
-        s.solveStarted.connect(self._solve_started)
-        s.recordAccepted.connect(self._record)
-        s.solveDone.connect(self._solve_done)
+        acts.preserve.toggled.connect(lambda _: self.readout.show_state())
+        s.frameReady.connect(frames.draw)
+        s.solveStarted.connect(frames.solve_started)
+        s.recordAccepted.connect(frames.record)
+        s.solveDone.connect(frames.solve_done)
+        frames.solveDone.connect(self.solveDone)
         s.failed.connect(lambda message: self.error("The solver stopped", message))
         s.idle.connect(self.idle.emit)
-        s.view_busy = self._view_busy  # idle once the full mesh is drawn
-        vp.moving_hint = self.moving
-        s.flushed.connect(vp.finish_model)
+        s.watch_view(frames.view_busy)  # idle once the full mesh is drawn
+        vp.model_frames.follow_motion(frames.moving)
+        s.flushed.connect(vp.model_frames.finish)
         vp.modelDrawn.connect(lambda: self.readout.frame(None))
         # solves start after the view's first paint (queued: not from inside the paint)
         vp.firstPainted.connect(s.view_ready, Qt.ConnectionType.QueuedConnection)
@@ -144,9 +173,9 @@ class MainWindow(FramesMixin, QMainWindow):
         vp.dragFinished.connect(self._drag_finished)
         vp.dragCanceled.connect(self._drag_canceled)
         vp.lockChanged.connect(lambda text: vp.show_info(s.drag_text(text)))
-        tools.connect(self)
-        handletools.connect(self)
-        self.timeline.connect()
+        self.node_tools.connect_signals()
+        self.handle_tools.connect_signals()
+        self.timeline.connect_signals()
         vp.contextMenuRequested.connect(
             lambda row, pos: self.exec_menu(self.context_menu(row), pos)
         )
@@ -173,19 +202,19 @@ class MainWindow(FramesMixin, QMainWindow):
         g.foldGuardClicked.connect(
             lambda on: self.commit_edit(goalrules.edit_fold_guard(self.doc.base(), on))
         )
-        p.pin_all.clicked.connect(self.act_pin_all.trigger)
-        p.unpin_all.clicked.connect(self.act_unpin_all.trigger)
+        p.pin_all.clicked.connect(acts.pin_all.trigger)
+        p.unpin_all.clicked.connect(acts.unpin_all.trigger)
         p.targetEdited.connect(self.set_target)
         p.latticeRequested.connect(self.rebuild_lattice)
         p.solve_button.clicked.connect(self.solve_again)
-        p.reset_button.clicked.connect(self.act_reset.trigger)
+        p.reset_button.clicked.connect(acts.reset.trigger)
         for action, box in (
-            (self.act_preserve, p.preserve_box),
-            (self.act_live, p.live_box),
-            (self.act_lattice, p.lattice_box),
-            (self.act_diag, p.diag_box),
-            (self.act_ghost, p.ghost_box),
-            (self.act_smooth, p.smooth_box),
+            (acts.preserve, p.preserve_box),
+            (acts.live, p.live_box),
+            (acts.lattice, p.lattice_box),
+            (acts.diag, p.diag_box),
+            (acts.ghost, p.ghost_box),
+            (acts.smooth, p.smooth_box),
         ):
             bind(action, box)
 
@@ -196,7 +225,7 @@ class MainWindow(FramesMixin, QMainWindow):
         self.plot.reset(
             st.surface.size, st.problem.scenario.tol_volume, st.problem.scenario.tol_nodes
         )
-        self._frame_after_solve = True  # once the opening solve ends, fit it in the view
+        self.frames.frame_after_solve()  # once the opening solve ends, fit it in the view
         self.update_title()
         for w in st.problem.warnings:
             self.statusBar().showMessage(w, 10000)
@@ -223,15 +252,15 @@ class MainWindow(FramesMixin, QMainWindow):
         st = self.state
         self.readout.show_state()
         self.panel.show_target(st.target_ratio * 100)
-        handletools.show(self)
+        self.handle_tools.show()
         self._selection_changed(repaint=False)  # (the state's frame follows: it repaints)
         self._status_changed()
 
     def _selection_changed(self, repaint: bool = True) -> None:
         self.viewport.set_selection(self.doc.selection.rows, repaint)
-        self._show_selection()
+        self.show_selection()
 
-    def _show_selection(self) -> None:
+    def show_selection(self) -> None:
         """The Inspector's selection fields, at the nodes as drawn."""
         st = self.state
         self.panel.show_selection(
@@ -253,7 +282,7 @@ class MainWindow(FramesMixin, QMainWindow):
 
     # -- edits ---------------------------------------------------------------------------------
     def _drag_started(self) -> None:
-        self._frame_after_solve = False
+        self.frames.keep_camera()
         if self.session.begin_drag():
             self.viewport.scene.set_folds(None)  # they belong to the nodes before the drag
             self.viewport.show_info(self.session.drag_text())
@@ -268,7 +297,7 @@ class MainWindow(FramesMixin, QMainWindow):
 
     def commit_edit(self, edit) -> bool:
         """Commit ``edit`` (from a document rule) as one undo step; False: nothing to do."""
-        self._frame_after_solve = False
+        self.frames.keep_camera()
         return self.session.commit(edit)
 
     def type_position(self, axis: int, value: float) -> None:
@@ -310,12 +339,12 @@ class MainWindow(FramesMixin, QMainWindow):
 
     # -- display -------------------------------------------------------------------------------
     def display_changed(self, _=None) -> None:
-        scene = self.viewport.scene
+        scene, acts = self.viewport.scene, self.action_set
         if scene.built:
-            scene.set_lattice_visible(self.act_lattice.isChecked(), self.act_diag.isChecked())
-            scene.set_ghost(self.act_ghost.isChecked())
-            if scene.smooth != self.act_smooth.isChecked():
-                scene.set_smooth(self.act_smooth.isChecked())
+            scene.set_lattice_visible(acts.lattice.isChecked(), acts.diag.isChecked())
+            scene.set_ghost(acts.ghost.isChecked())
+            if scene.smooth != acts.smooth.isChecked():
+                scene.set_smooth(acts.smooth.isChecked())
             self.viewport.show_gizmo()
         self.viewport.update()
 
@@ -331,17 +360,29 @@ class MainWindow(FramesMixin, QMainWindow):
             menu.addAction(
                 f"Unpin {what}" if fixed else f"Pin {what}", lambda: self.set_pins(rows, not fixed)
             )
-            for a in self.act_pin_axes:
+            for a in self.action_set.pin_axes:
                 menu.addAction(a)
             menu.addSeparator()
-        for a in (self.act_pin_all, self.act_unpin_all, None, self.act_select_all, self.act_frame):
-            menu.addSeparator() if a is None else menu.addAction(a)
+        acts = self.action_set
+        common: tuple[QAction | None, ...] = (
+            acts.pin_all,
+            acts.unpin_all,
+            None,
+            acts.select_all,
+            acts.frame,
+        )
+        for entry in common:
+            menu.addSeparator() if entry is None else menu.addAction(entry)
         return menu
 
     def exec_menu(self, menu: QMenu, pos: QPoint) -> None:
         menu.exec(pos)
 
     # -- messages ------------------------------------------------------------------------------
+    def set_headless_errors(self, on: bool = True) -> None:
+        """Errors go to stderr instead of dialogs (on): nobody is there to close them."""
+        self.headless_errors = bool(on)
+
     def error(self, title: str, message: str) -> None:
         if self.headless_errors:
             print(f"isochor: {message}", file=sys.stderr)
@@ -349,7 +390,7 @@ class MainWindow(FramesMixin, QMainWindow):
         QMessageBox.critical(self, title, message)
 
     def show_controls(self) -> None:
-        QMessageBox.information(self, "Controls", tools.CONTROLS_HTML)
+        QMessageBox.information(self, "Controls", CONTROLS_HTML)
 
     def show_about(self) -> None:
         from ... import __version__
@@ -372,9 +413,9 @@ class MainWindow(FramesMixin, QMainWindow):
     def shutdown(self) -> None:
         """Stop the session (waits at most half a second for the solver), release VTK.
         Safe to call more than once."""
-        if self._closed:
+        if self.closed:
             return
-        self._closed = True
+        self.closed = True
         # nothing may reach this window once it is going away
         self.session.undo_stack.cleanChanged.disconnect(self.update_title)
         self.timeline.shutdown()

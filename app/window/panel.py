@@ -52,8 +52,7 @@ class _WheelGuard(QObject):
 def guard_wheel(box) -> None:
     """Let ``box`` take focus only by click or Tab, and the wheel only while focused."""
     box.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
-    box.wheel_guard = _WheelGuard(box)
-    box.installEventFilter(box.wheel_guard)
+    box.installEventFilter(_WheelGuard(box))  # (the box owns it: its child)
 
 
 def _spin(lo: float, hi: float, decimals: int, suffix: str = "") -> QDoubleSpinBox:

@@ -28,7 +28,7 @@ class ConvergencePlot(QWidget):
     :meth:`finish` with the final nodes; :meth:`update` repaints (with ``deferred``,
     :meth:`refresh` repaints what reset and finish changed)."""
 
-    def __init__(self, parent=None) -> None:
+    def __init__(self, parent=None, deferred: bool = False) -> None:
         super().__init__(parent)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         self.setMinimumHeight(120)
@@ -36,7 +36,7 @@ class ConvergencePlot(QWidget):
         self.tol_volume = 5e-4
         self.tol_nodes = 1e-3
         #: reset() and finish() leave the repaint to :meth:`refresh` (``stale``)
-        self.deferred = False
+        self.deferred = deferred
         self.stale = False
         self.reset()
 

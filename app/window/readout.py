@@ -7,7 +7,8 @@
 - the marks on the view: each node's role (free, held, pinned on some axes, pinned, moved)
   and the folded part of a folded result.
 
-:class:`Readout` reads the window's session and document and draws; it holds no state.
+:class:`Readout` reads the window's session and document and draws; it owns its labels on
+the status bar and what it last drew as held.
 """
 
 from __future__ import annotations
@@ -23,17 +24,42 @@ TONES = {"neutral": "#8b95a5", "busy": style.MOVED, "good": style.FREE, "bad": s
 
 
 class Readout:
-    """The status bar's labels (also ``win.st_state`` ... ``win.st_time``) and the marks."""
+    """The status bar's labels and the marks on the view, for one window.
+
+    Attributes
+    ----------
+    state_label : the status chip
+    volume_label : the volume as drawn, and its target
+    level_label : the levels solved (or the level a solve is on)
+    solver_label : the solver's numbers
+    time_label : the solve's time
+    held_mask : (n,) the nodes drawn as held by the far-side anchor
+    held_face : their face's name ("" when none)
+    """
 
     def __init__(self, win) -> None:
         self.win = win
         sb = win.statusBar()
-        self.labels = [QLabel() for _ in range(5)]
+        self.state_label = QLabel()
+        self.volume_label = QLabel()
+        self.level_label = QLabel()
+        self.solver_label = QLabel()
+        self.time_label = QLabel()
         for w in self.labels:
             sb.addPermanentWidget(w)
-        win.st_state, win.st_volume, win.st_level, win.st_solver, win.st_time = self.labels
         self.held_mask = np.zeros(0, dtype=bool)  #: (n,) the nodes drawn as held
         self.held_face = ""  #: their face's name ("" when none)
+
+    @property
+    def labels(self) -> list[QLabel]:
+        """The status bar's labels, left to right."""
+        return [
+            self.state_label,
+            self.volume_label,
+            self.level_label,
+            self.solver_label,
+            self.time_label,
+        ]
 
     # -- the state ---------------------------------------------------------------------------
     def show_state(self) -> None:
@@ -42,16 +68,17 @@ class Readout:
         win = self.win
         st = win.state
         win.panel.goal.show_goal(st, st.surface.bodies.count)
+        acts = win.action_set
         for action, on in (
-            (win.act_anchor, st.anchor == "far-side"),
-            (win.act_centroid, st.keep_centroid),
-            (win.act_per_body, st.preserve == "per-body"),
-            (win.act_fold_guard, st.fold_guard),
+            (acts.anchor, st.anchor == "far-side"),
+            (acts.centroid, st.keep_centroid),
+            (acts.per_body, st.preserve == "per-body"),
+            (acts.fold_guard, st.fold_guard),
         ):
             action.blockSignals(True)
             action.setChecked(bool(on))
             action.blockSignals(False)
-        win.act_per_body.setEnabled(st.surface.bodies.count > 1 or st.preserve == "per-body")
+        acts.per_body.setEnabled(st.surface.bodies.count > 1 or st.preserve == "per-body")
         r = st.result if st.solved else None
         folded = r.folded_vertices if r is not None and win.doc.preserve else None
         win.viewport.scene.set_folds(folded)
@@ -78,20 +105,20 @@ class Readout:
         win = self.win
         chip, tone, sentence = win.session.status()
         color = TONES[tone]
-        win.st_state.setText(f'<span style="color:{color}">&#9679;</span> {chip}')
+        self.state_label.setText(f'<span style="color:{color}">&#9679;</span> {chip}')
         win.panel.show_solve_state(sentence, color)
         r = win.state.result
         if win.session.busy() or win.doc.drag is not None:
             return  # the progress records say what runs
         if r is None or not win.doc.preserve:
-            for label in (win.st_level, win.st_solver, win.st_time):
+            for label in (self.level_label, self.solver_label, self.time_label):
                 label.setText("")
             return
-        win.st_level.setText(r.span())
-        win.st_solver.setText(
+        self.level_label.setText(r.span())
+        self.solver_label.setText(
             f"σ {r.sigma:.3g} · λ {r.lam:.3g} · |dV|/V0 {abs(r.rel_volume_error):.1e} (full mesh)"
         )
-        win.st_time.setText(f"{1000 * r.elapsed:.0f} ms")
+        self.time_label.setText(f"{1000 * r.elapsed:.0f} ms")
 
     def know_volume(self, nodes) -> None:
         """When ``nodes`` are the current state's solved nodes, give the view the full
@@ -121,16 +148,23 @@ class Readout:
         else:
             text = f"Volume {pct:.2f} % (target {100 * st.target_ratio:.4g} %)"
             tip = "The volume of the full mesh as drawn."
-        win.st_volume.setText(text)
-        win.st_volume.setToolTip(tip)
+        self.volume_label.setText(text)
+        self.volume_label.setToolTip(tip)
         if record is not None:
-            win.st_level.setText(
+            self.level_label.setText(
                 f"Level {record.level + 1}/{record.n_levels} · {record.triangles:,} triangles"
             )
-            win.st_solver.setText(
+            self.solver_label.setText(
                 f"step {record.step} · σ {record.sigma:.3g} · λ "
                 f"{record.lam:.3g} · |dV|/V0 {abs(record.rel_volume_error):.1e}"
             )
-            win.st_time.setText(f"{1000 * record.elapsed:.0f} ms")
+            self.time_label.setText(f"{1000 * record.elapsed:.0f} ms")
         if win.doc.drag is not None:
             self.show_held()
+
+    def show_frame_volume(self, volume: float, target: float, frame: int) -> None:
+        """The volume of a timeline frame as drawn (percent of the rest volume) and its
+        own target (a ratio), in place of the working edit's."""
+        self.volume_label.setText(
+            f"Volume {volume:.2f} % (target {100 * target:.4g} % at frame {frame})"
+        )

@@ -1,8 +1,8 @@
-"""The window's timeline (issue 13): the Timeline dock, its actions and keys, scrubbing and
-playing. GUI thread only; the edit rules are the document's
-(:mod:`isochor.app.editor.timelinerules`), what a frame shows is
-:mod:`isochor.app.editor.timeline`'s (whose notes say what the artist sees) and the frames
-are solved in the background by
+"""The window's timeline (issue 13): the Timeline dock's panel, scrubbing and playing (its
+actions and keys are :class:`~isochor.app.window.actions.ActionSet`'). GUI thread only; the
+edit rules are the document's (:mod:`isochor.app.editor.timelinerules`), what a frame shows
+is :mod:`isochor.app.editor.timeline`'s (whose notes say what the artist sees) and the
+frames are solved in the background by
 :class:`~isochor.app.session.framesolver.FrameSolver`.
 
 Playing shows the solved frames at the timeline's rate, looping; frames not solved yet are
@@ -11,11 +11,12 @@ skipped (while the background solve goes on, the loop grows as frames are solved
 
 from __future__ import annotations
 
+import numpy as np
 from PySide6.QtCore import QObject, Qt, QTimer
-from PySide6.QtGui import QKeySequence
-from PySide6.QtWidgets import QDockWidget, QLabel
+from PySide6.QtWidgets import QLabel
 
 from ...core.errors import IsochorError
+from ...core.scenario.poses import Pose
 from ..editor import timelinerules
 from ..editor.state import StateCell
 from ..editor.timeline import describe, frame_fixed, frame_nodes, frame_target, pose_of, same_pose
@@ -24,84 +25,14 @@ from ..session.framesolver import FrameSolver
 from .timelinebar import TimelinePanel
 
 
-def build(win, action) -> None:
-    """The Timeline dock (``win.timeline_dock``, ``win.timeline_panel``), its actions as
-    ``win.act_*`` and ``win.timeline`` (:class:`TimelineTool`)."""
-    K = QKeySequence  # noqa: N806
-    panel = TimelinePanel()
-    win.timeline_panel = panel
-    dock = QDockWidget("Timeline", win)
-    dock.setObjectName("timeline")
-    dock.setWidget(panel)
-    features = QDockWidget.DockWidgetFeature
-    dock.setFeatures(
-        features.DockWidgetMovable | features.DockWidgetFloatable | features.DockWidgetClosable
-    )
-    win.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, dock)
-    win.splitDockWidget(win.plot_dock, dock, Qt.Orientation.Vertical)
-    win.timeline_dock = dock
-    tool = win.timeline = TimelineTool(win)
-    win.act_set_key = action(
-        "Set &Key", tool.set_key, K("I"), tip="Key the working pose at the current frame"
-    )
-    win.act_remove_key = action(
-        "&Remove Key", tool.remove_key, K("Alt+I"), tip="Remove the key at the current frame"
-    )
-    # keys that other widgets use too (arrows, Space): only in the view and the scrubber
-    local = {
-        "prev_key": ("&Previous Key", lambda: tool.jump_key(-1), "Down"),
-        "next_key": ("&Next Key", lambda: tool.jump_key(+1), "Up"),
-        "prev_frame": ("Previous &Frame", lambda: tool.step(-1), "Left"),
-        "next_frame": ("Next F&rame", lambda: tool.step(+1), "Right"),
-        "first": ("&Start of the Range", lambda: tool.go_to_end(-1), "Shift+Left"),
-        "last": ("&End of the Range", lambda: tool.go_to_end(+1), "Shift+Right"),
-        "play": ("&Play / Pause", tool.toggle_play, "Space"),
-    }
-    for name, (text, slot, key) in local.items():
-        a = action(text, slot)
-        a.setShortcut(K(key))
-        a.setShortcutContext(Qt.ShortcutContext.WidgetWithChildrenShortcut)
-        win.removeAction(a)
-        win.viewport.addAction(a)
-        panel.scrubber.addAction(a)
-        setattr(win, f"act_{name}", a)
-    win.act_play.setToolTip("Play the solved frames at the frame rate, looping (Space)")
-    panel.use_actions(
-        {
-            "first": win.act_first,
-            "prev_key": win.act_prev_key,
-            "play": win.act_play,
-            "next_key": win.act_next_key,
-            "last": win.act_last,
-            "set_key": win.act_set_key,
-            "remove_key": win.act_remove_key,
-        }
-    )
-
-
-def add_menu(win, menubar) -> None:
-    m = menubar.addMenu("&Timeline")
-    for a in (
-        win.act_set_key,
-        win.act_remove_key,
-        None,
-        win.act_play,
-        win.act_prev_key,
-        win.act_next_key,
-        win.act_prev_frame,
-        win.act_next_frame,
-        win.act_first,
-        win.act_last,
-    ):
-        m.addSeparator() if a is None else m.addAction(a)
-
-
 class TimelineTool(QObject):
     """The current frame, what the view shows, the background solve of the frames and
     playing, for one window.
 
     Attributes
     ----------
+    panel : the Timeline dock's :class:`~isochor.app.window.timelinebar.TimelinePanel`
+    label : the status bar's word on the frame on screen
     frame : the current frame
     showing : the view shows the frame's pose (between keys), not the working edit
     shown : (n, 3) the nodes shown for the frame, or None (the working edit is shown)
@@ -115,14 +46,16 @@ class TimelineTool(QObject):
         self.win = win
         self.frame = 0
         self.showing = False
-        self.shown = None
+        self.shown: np.ndarray | None = None
         self.solved = False
         self.playing = False
         self.solver = FrameSolver(win.session, self)
-        self.label = QLabel("")  #: the status bar's word on the frame on screen
+        self.panel = TimelinePanel()
+        self.label = QLabel("")
         self.label.setMinimumWidth(1)  # its text never widens the window
         win.statusBar().insertPermanentWidget(0, self.label)
-        self._pose = None  # the working edit last seen: an edit of it leaves the frame
+        # the working edit last seen (its problem and pose): an edit of it leaves the frame
+        self._pose: tuple[object, Pose] | None = None
         self.play_timer = QTimer(self)
         self.play_timer.timeout.connect(self._tick)
 
@@ -130,8 +63,8 @@ class TimelineTool(QObject):
     def doc(self):
         return self.win.session.document
 
-    def connect(self) -> None:
-        win, s, p = self.win, self.win.session, self.win.timeline_panel
+    def connect_signals(self) -> None:
+        win, s, p = self.win, self.win.session, self.panel
         s.documentLoaded.connect(self.loaded)
         s.stateChanged.connect(self.state_changed)
         fs = self.solver
@@ -139,10 +72,10 @@ class TimelineTool(QObject):
         s.statusChanged.connect(fs.schedule)
         s.idle.connect(fs.schedule)
         s.solveStarted.connect(fs.stop)
-        win.viewport.firstPainted.connect(self._first_paint, Qt.ConnectionType.QueuedConnection)
+        win.viewport.firstPainted.connect(fs.view_ready, Qt.ConnectionType.QueuedConnection)
         fs.frameSolved.connect(self._frame_solved)
         fs.changed.connect(self.refresh)
-        win.act_preserve.toggled.connect(lambda _on: self.refresh())
+        win.action_set.preserve.toggled.connect(lambda _on: self.refresh())
         p.frameChosen.connect(self.go_to)
         p.scrubber.frameScrubbed.connect(lambda f: self.go_to(f, scrub=True))
         p.scrubber.scrubReleased.connect(self.go_to)
@@ -196,10 +129,6 @@ class TimelineTool(QObject):
             self.showing = False
             self.refresh()
 
-    def _first_paint(self) -> None:
-        self.solver.ready = True
-        self.solver.schedule()
-
     @property
     def cache(self):
         """The :class:`~isochor.app.editor.timeline.FrameCache` of the current timeline, or None."""
@@ -248,7 +177,7 @@ class TimelineTool(QObject):
             solved = self.cache.keys.get(frame)
         edit = timelinerules.edit_go_to_key(doc.base(), frame, solved)
         if edit is not None:
-            self.win._frame_after_solve = False
+            self.win.frames.keep_camera()
             cmd = GoToKeyCommand(doc, edit.text, doc.cell, StateCell(edit.state))
             self.win.session.undo_stack.push(cmd)
 
@@ -344,13 +273,13 @@ class TimelineTool(QObject):
         key = tl.key_at(self.frame)
         keyed = key is not None and same_pose(pose_of(st, self.frame), key, st.lattice)
         shown = showing or (keyed and not self.showing)  # the frame's own pose is on screen
-        win.timeline_panel.show_timeline(tl, self.frame, solved, shown, self.playing)
+        self.panel.show_timeline(tl, self.frame, solved, shown, self.playing)
         info = describe(tl, self.frame, showing, self.solved, keyed)
         self.label.setText(self._short(showing, keyed) if tl.keys else "")
         self.label.setToolTip(info)
         if self.playing:
             info = f"Playing at {tl.rate:g} fps (frames not solved yet are skipped) — {info}"
-        win.timeline_panel.show_text(info, self.solver.progress())
+        self.panel.show_text(info, self.solver.progress())
         if self.playing:
             self.play_timer.setInterval(max(1, round(1000 / tl.rate)))
         if was_shown or self.shown is not None:
@@ -364,9 +293,7 @@ class TimelineTool(QObject):
         st = self.doc.state
         target = frame_target(st.timeline, self.frame)
         volume = 100 * win.viewport.model_volume / st.surface.rest_volume
-        win.st_volume.setText(
-            f"Volume {volume:.2f} % (target {100 * target:.4g} % at frame {self.frame})"
-        )
+        win.readout.show_frame_volume(volume, target, self.frame)
 
     def _short(self, showing: bool, keyed: bool) -> str:
         """The status bar's word on the frame: ``"Frame 5 · solved"``."""
@@ -381,7 +308,7 @@ class TimelineTool(QObject):
             self.refresh()  # the frame on screen (or its interpolated start) is better now
             return
         tl = self.doc.state.timeline
-        p = self.win.timeline_panel
+        p = self.panel
         solved = self.cache.frames
         shown = p.scrubber.shown
         p.scrubber.show_frames(tl.start, tl.end, self.frame, tl.key_frames, solved, shown)

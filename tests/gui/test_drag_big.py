@@ -23,7 +23,11 @@ pytestmark = pytest.mark.skipif(
 
 def settled(win) -> bool:
     """No solve, no pending frame, and the full mesh on screen."""
-    return not win.is_solving() and not win.session.frame_pending and win.viewport.showing_full()
+    return (
+        not win.is_solving()
+        and not win.session.frame_pending
+        and win.viewport.model_frames.showing_full()
+    )
 
 
 @pytest.fixture
@@ -52,8 +56,8 @@ def test_a_drag_of_the_big_armadillo_draws_a_proxy_and_ends_on_the_headless_solv
     st = win.state
     surface = st.surface
     assert surface.full.n_faces > 300_000
-    assert vp.drawn_model().startswith("full mesh"), "nothing moves: the full mesh"
-    win.act_live.setChecked(True)
+    assert vp.model_frames.drawn_model().startswith("full mesh"), "nothing moves: the full mesh"
+    win.action_set.live.setChecked(True)
     assert win.session.live, "live solving is on"
 
     row = pickable_node(win, want_free=True)
@@ -62,7 +66,9 @@ def test_a_drag_of_the_big_armadillo_draws_a_proxy_and_ends_on_the_headless_solv
     picked = {}
 
     def drawn(_nodes, _record) -> None:  # runs after the window drew the frame
-        frames.append((vp.nodes[row].copy(), vp.drawn_model(), win.st_volume.text()))
+        frames.append(
+            (vp.nodes[row].copy(), vp.model_frames.drawn_model(), win.readout.volume_label.text())
+        )
         if not picked and len(frames) > 3 and win.doc.drag is not None:
             picked["points"] = np.array(vp.scene.model_points())
             picked["nodes"] = vp.nodes.copy()
@@ -99,7 +105,7 @@ def test_a_drag_of_the_big_armadillo_draws_a_proxy_and_ends_on_the_headless_solv
     assert previews and all(previews), "the drag's solves were live previews"
     # frames of the release solve drew the proxy too, and the last the full mesh
     assert all(f[1].startswith("proxy") for f in frames[released:-1])
-    assert vp.drawn_model() == f"full mesh ({surface.full.n_faces} triangles)"
+    assert vp.model_frames.drawn_model() == f"full mesh ({surface.full.n_faces} triangles)"
 
     # picking used the full mesh at the nodes drawn while the proxy was on screen
     assert picked, "a frame during the drag was recorded"
@@ -113,7 +119,7 @@ def test_a_drag_of_the_big_armadillo_draws_a_proxy_and_ends_on_the_headless_solv
     assert st.solved and st.converged, st.result.message
     assert np.array_equal(vp.nodes, st.nodes)
     assert np.allclose(vp.scene.model_points(), surface.deform(st.nodes), atol=1e-9)
-    assert not vp.scene.volume_estimated and "≈" not in win.st_volume.text()
+    assert not vp.scene.volume_estimated and "≈" not in win.readout.volume_label.text()
     measured = surface.rest_volume * (st.target_ratio + st.result.rel_volume_error)
     assert vp.model_volume == pytest.approx(measured, rel=1e-12)
     assert vp.model_volume / surface.rest_volume == pytest.approx(st.target_ratio, abs=1e-3)
@@ -132,10 +138,18 @@ def test_a_drag_of_the_big_armadillo_draws_a_proxy_and_ends_on_the_headless_solv
         )
     )
     assert headless.converged
-    assert np.allclose(st.nodes, headless.nodes, rtol=0, atol=1e-9 * surface.size)
+    # The release solve starts from the preconditioner the live frames factored (shared
+    # while the nodes stay near, by design); the headless one factors its own, so their
+    # steps differ and each stops where the solver's criteria hold: the nodes within the
+    # paper's epsilon (tol_nodes of the size) of the same minimum, the volume within its
+    # tolerance. (Equal to 1e-7 of the size in practice; 1e-9 held only when no live frame
+    # had run before the release.)
+    tol = st.problem.scenario
+    assert np.allclose(st.nodes, headless.nodes, rtol=0, atol=tol.tol_nodes * surface.size)
+    assert abs(st.result.rel_volume_error - headless.rel_volume_error) <= 2 * tol.tol_volume
 
     # a click on the model places a handle on a full-mesh triangle
-    hit = vp.model_hit(QPointF(*screen_positions(win)[0][row]))
-    centre = vp.projection().project(st.surface.center)[0][0]
-    hit = hit or vp.model_hit(QPointF(*centre))
+    hit = vp.camera_control.model_hit(QPointF(*screen_positions(win)[0][row]))
+    centre = vp.camera_control.projection().project(st.surface.center)[0][0]
+    hit = hit or vp.camera_control.model_hit(QPointF(*centre))
     assert hit is not None and 0 <= hit[0] < surface.full.n_faces

@@ -23,7 +23,7 @@ def test_shift_drag_box_selects_the_nodes_inside(qtbot, window):
     left = xy[:, 0] <= x1
     y0, y1 = 5, vp.height() - 5
     start = QPoint(x0, y0)
-    assert vp.node_at(start) == -1
+    assert vp.camera_control.node_at(start) == -1
     shift = Qt.KeyboardModifier.ShiftModifier
     QTest.mousePress(vp, Qt.MouseButton.LeftButton, shift, start)
     QTest.mouseMove(vp, QPoint((x0 + x1) // 2, (y0 + y1) // 2))
@@ -108,7 +108,7 @@ def test_live_drag_solves_while_the_mouse_moves(qtbot, window):
     from PySide6.QtTest import QTest
 
     win = window
-    win.act_live.setChecked(True)
+    win.action_set.live.setChecked(True)
     assert win.panel.live_box.isChecked()
     vp = win.viewport
     row = pickable_node(win, want_free=True)
@@ -132,7 +132,7 @@ def test_live_drag_solves_while_the_mouse_moves(qtbot, window):
 def test_preserve_off_is_plain_ffd(qtbot, window):
     win = window
     solved = np.array(win.state.nodes)
-    win.act_preserve.setChecked(False)
+    win.action_set.preserve.setChecked(False)
     assert not win.panel.preserve_box.isChecked()
     wait_idle(qtbot, win)
     rest = win.state.lattice.rest_nodes
@@ -146,7 +146,7 @@ def test_preserve_off_is_plain_ffd(qtbot, window):
     drag(qtbot, win, row, offset=(40, -30))
     assert not win.is_solving(), "no solve with the constraint off"
     assert win.state.moved[row] and not win.state.solved
-    win.act_preserve.setChecked(True)
+    win.action_set.preserve.setChecked(True)
     assert win.is_solving(), "turning the constraint on solves the edit"
     wait_idle(qtbot, win)
     assert win.state.solved and win.state.converged
@@ -160,7 +160,7 @@ def test_target_volume_and_lattice_rebuild_are_undoable(qtbot, window):
     wait_idle(qtbot, win)
     assert win.state.converged
     assert win.viewport.model_volume / win.state.surface.rest_volume == pytest.approx(0.8, abs=1e-3)
-    assert "target 80 %" in win.st_volume.text()
+    assert "target 80 %" in win.readout.volume_label.text()
 
     cell_before_rebuild = win.doc.cell
     for spin, n in zip(win.panel.shape, (4, 3, 2)):

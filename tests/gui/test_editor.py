@@ -11,7 +11,7 @@ from tests.gui.conftest import distinct_colours, wait_idle
 # -- helpers ------------------------------------------------------------------------------
 def screen_positions(win):
     vp = win.viewport
-    xy, _, visible = vp.projection().project(vp.nodes)
+    xy, _, visible = vp.camera_control.projection().project(vp.nodes)
     return xy, visible
 
 
@@ -77,7 +77,7 @@ def test_window_opens_on_the_default_example_and_renders(window):
     win = window
     assert win.state.problem.scenario.model == {"builtin": "torus"}
     assert win.state.solved and win.state.converged
-    assert win.redraws >= 1
+    assert win.frames.redraws >= 1
     view = win.viewport.grabFramebuffer()
     assert view.width() > 100 and view.height() > 100
     assert distinct_colours(view) > 50  # shaded model, coloured nodes, gradient
@@ -131,7 +131,7 @@ def test_drag_moves_node_solves_progressively_and_undoes(qtbot, window):
     row = pickable_node(win, want_free=True)
     before = np.array(win.state.nodes)
     before_fixed = win.state.fixed.copy()
-    redraws0 = win.redraws
+    redraws0 = win.frames.redraws
 
     drag(qtbot, win, row)
     assert win.is_solving(), "releasing a drag starts a solve"
@@ -144,7 +144,7 @@ def test_drag_moves_node_solves_progressively_and_undoes(qtbot, window):
     after = np.array(win.state.nodes)
     # progressive: at least one intermediate record drawn during the solve, then the end
     assert win.session.frames_by_generation.get(gen, 0) >= 1, "no intermediate frame drawn"
-    assert win.redraws - redraws0 >= 3, "the drag, an intermediate and the final frame"
+    assert win.frames.redraws - redraws0 >= 3, "the drag, an intermediate and the final frame"
     assert np.array_equal(after[row], start_nodes[row]), "a moved node is fixed"
     moved_free = np.abs(after - before).max(axis=1)[~before_fixed]
     assert moved_free.max() > 1e-4, "the free nodes followed"

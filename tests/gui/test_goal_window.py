@@ -144,7 +144,7 @@ def test_a_one_node_drag_holds_the_far_face_until_hold_far_side_is_unticked(qtbo
     assert "untick Hold far side" in note.text()
     # the rendered frame: the visible held nodes are green, the free ones blue
     image = pixels(win)
-    xy, _, visible = vp.projection().project(vp.nodes)
+    xy, _, visible = vp.camera_control.projection().project(vp.nodes)
     green = [
         int(row_)
         for row_ in held
@@ -160,7 +160,7 @@ def test_a_one_node_drag_holds_the_far_face_until_hold_far_side_is_unticked(qtbo
     click_box(win, win.panel.goal.anchor_box)
     assert win.state.anchor == "none" and win.state.goal.anchor == "none"
     assert win.undo_stack.undoText() == "Hold far side off"
-    assert not win.act_anchor.isChecked()
+    assert not win.action_set.anchor.isChecked()
     wait_idle(qtbot, win)
     drag(qtbot, win, row, offset=(40, -30))
     wait_idle(qtbot, win)
@@ -207,8 +207,8 @@ def test_a_folded_result_is_marked_on_the_model_and_undo_clears_it(qtbot, window
 
     r = win.state.result
     assert r.folded and not r.converged
-    assert win.st_state.text().endswith("Folded")
-    assert TONES["bad"] in win.st_state.text()
+    assert win.readout.state_label.text().endswith("Folded")
+    assert TONES["bad"] in win.readout.state_label.text()
     sentence = win.panel.solve_state.text()
     assert "Folded:" in sentence and "of the model is inside out" in sentence
     assert "undo, pin fewer nodes or move less" in sentence and TONES["bad"] in sentence
@@ -222,7 +222,7 @@ def test_a_folded_result_is_marked_on_the_model_and_undo_clears_it(qtbot, window
     undo_key(win)
     wait_idle(qtbot, win)
     assert win.state.converged and not win.state.result.folded
-    assert win.st_state.text().endswith("Converged")
+    assert win.readout.state_label.text().endswith("Converged")
     assert (drawn(win, "model", "colors") == rgb(style.MODEL)).all(), "undo cleared the marks"
     assert red_pixels() < 50
 
@@ -237,12 +237,12 @@ def test_the_constraint_switches_are_undoable_edits(qtbot, window):
     g = win.panel.goal
     assert g.anchor_box.isChecked() and g.fold_box.isChecked() and not g.centroid_box.isChecked()
     assert not g.volume_choice.isEnabled(), "the torus is one body"
-    assert not win.act_per_body.isEnabled()
+    assert not win.action_set.per_body.isEnabled()
     for box in (g.anchor_box, g.centroid_box, g.fold_box, g.volume_choice):
         assert box.toolTip() and box.focusPolicy() & Qt.FocusPolicy.TabFocus
 
     click_box(win, g.centroid_box)
-    assert win.state.keep_centroid and win.act_centroid.isChecked()
+    assert win.state.keep_centroid and win.action_set.centroid.isChecked()
     assert win.undo_stack.undoText() == "Keep centre of mass"
     assert win.is_solving(), "a new goal is solved"
     wait_idle(qtbot, win)
@@ -252,10 +252,10 @@ def test_the_constraint_switches_are_undoable_edits(qtbot, window):
     # the keyboard: Space on the focused Fold guard box
     g.fold_box.setFocus()
     QTest.keyClick(g.fold_box, Qt.Key.Key_Space)
-    assert not win.state.fold_guard and not win.act_fold_guard.isChecked()
+    assert not win.state.fold_guard and not win.action_set.fold_guard.isChecked()
     assert win.undo_stack.undoText() == "Fold guard off"
     # the Solve menu's action does the same as the box
-    win.act_anchor.trigger()
+    win.action_set.anchor.trigger()
     assert win.state.anchor == "none" and not g.anchor_box.isChecked()
     assert win.undo_stack.undoText() == "Hold far side off"
     wait_idle(qtbot, win)
@@ -265,7 +265,7 @@ def test_the_constraint_switches_are_undoable_edits(qtbot, window):
     st = win.state
     assert (st.anchor, st.fold_guard, st.keep_centroid) == ("far-side", True, False)
     assert g.anchor_box.isChecked() and g.fold_box.isChecked() and not g.centroid_box.isChecked()
-    assert win.act_anchor.isChecked() and not win.act_centroid.isChecked()
+    assert win.action_set.anchor.isChecked() and not win.action_set.centroid.isChecked()
     assert st.converged and not g.stats.isVisible(), "back on the example's solved state"
     undo_key(win, redo=True)
     assert win.state.keep_centroid and g.centroid_box.isChecked()
@@ -356,7 +356,7 @@ def test_two_bodies_show_their_volumes_and_each_body_keeps_its_own(qtbot, window
     wait_idle(qtbot, win)
     g = win.panel.goal
     assert win.state.surface.bodies.count == 2
-    assert g.volume_choice.isEnabled() and win.act_per_body.isEnabled()
+    assert g.volume_choice.isEnabled() and win.action_set.per_body.isEnabled()
     assert g.volume_choice.currentText() == "Total"
 
     # squash the small sphere's end of the lattice: in total, the bodies trade volume
@@ -399,7 +399,7 @@ def test_two_bodies_show_their_volumes_and_each_body_keeps_its_own(qtbot, window
     # Each body, chosen with the keyboard
     g.volume_choice.setFocus()
     QTest.keyClick(g.volume_choice, Qt.Key.Key_Down)
-    assert win.state.preserve == "per-body" and win.act_per_body.isChecked()
+    assert win.state.preserve == "per-body" and win.action_set.per_body.isChecked()
     assert win.undo_stack.undoText() == "Preserve each body"
     wait_idle(qtbot, win)
     st = win.state

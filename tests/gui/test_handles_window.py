@@ -25,13 +25,20 @@ def on_model(win, dx=25, dy=-20):
     from PySide6.QtCore import QPointF
 
     vp = win.viewport
-    c = vp.projection().project([0.0, 0.0, 0.0])[0][0]
+    c = vp.camera_control.projection().project([0.0, 0.0, 0.0])[0][0]
     for r in range(0, 60, 4):
         for a in np.linspace(0, 2 * np.pi, 12, endpoint=False):
             xy = np.round(c + (dx, dy) + r * np.array([np.cos(a), np.sin(a)]))
             pos = QPointF(*xy)
-            clear = vp.node_at(pos) < 0 and vp.handles.at(vp.projection(), *xy) < 0
-            if clear and vp.gizmo.axis_at(vp.projection(), *xy) is None and vp.model_hit(pos):
+            clear = (
+                vp.camera_control.node_at(pos) < 0
+                and vp.handles.at(vp.camera_control.projection(), *xy) < 0
+            )
+            if (
+                clear
+                and vp.gizmo.axis_at(vp.camera_control.projection(), *xy) is None
+                and vp.camera_control.model_hit(pos)
+            ):
                 return xy
     raise AssertionError("no free spot on the model")
 
@@ -56,7 +63,7 @@ def drag_px(qtbot, win, start, offset, steps=8, mods=None):
 
 
 def handle_xy(win, i=0):
-    return win.viewport.projection().project(win.viewport.handles.targets[i])[0][0]
+    return win.viewport.camera_control.projection().project(win.viewport.handles.targets[i])[0][0]
 
 
 def test_place_and_drag_a_handle_and_undo(qtbot, sphere):
@@ -91,7 +98,7 @@ def test_place_and_drag_a_handle_and_undo(qtbot, sphere):
     drag_px(qtbot, win, start, (50, -35))
     assert win.undo_stack.undoText() == "Move handle" and win.undo_stack.count() == 2
     target = np.array(win.state.handles[0].to)
-    assert np.allclose(vp.projection().project(target)[0][0], drop, atol=1.0)
+    assert np.allclose(vp.camera_control.projection().project(target)[0][0], drop, atol=1.0)
     assert np.linalg.norm(target - np.array(h.at)) > 0.1 * size
     wait_idle(qtbot, win)
     st = win.state
@@ -120,7 +127,7 @@ def test_handle_tool_place_and_drag_at_once_then_remove(qtbot, sphere, monkeypat
     win = sphere
     vp = win.viewport
     QTest.keyClick(vp, Qt.Key.Key_H)
-    assert win.act_handle_tool.isChecked() and vp.handle_mode
+    assert win.action_set.handle_tool.isChecked() and vp.handle_tool.active
     assert win.panel.handles.tool_box.isChecked()
     # a press on the model with the tool and a drag: one undo step that adds the handle
     start = on_model(win, -20, 15)
@@ -153,7 +160,7 @@ def test_handle_tool_place_and_drag_at_once_then_remove(qtbot, sphere, monkeypat
     undo_key(win)
     assert len(win.state.handles) == 1
     QTest.keyClick(vp, Qt.Key.Key_H)
-    assert not vp.handle_mode
+    assert not vp.handle_tool.active
     wait_idle(qtbot, win)
 
 
@@ -232,7 +239,7 @@ def test_scale_gesture_under_symmetry_mirrors_onto_the_partners(qtbot, sphere):
     wait_idle(qtbot, win)
     rows = [lat.index(i, 0, k) for i in range(3) for k in range(3)]  # the y-min layer
     click(win, rows[4])
-    win.act_select_layer[1].trigger()
+    win.action_set.select_layer[1].trigger()
     assert sorted(win.doc.selection.rows) == sorted(rows)
     from PySide6.QtTest import QTest
 

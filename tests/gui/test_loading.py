@@ -211,8 +211,8 @@ def test_the_armadillo_opens_through_file_open_without_freezing(qtbot, window, m
         files.QFileDialog, "getOpenFileName", staticmethod(lambda *a, **k: (str(ARMADILLO), ""))
     )
     ticks = Ticks(win)
-    redraws = win.redraws
-    win.act_open.trigger()  # File > Open
+    redraws = win.frames.redraws
+    win.action_set.open.trigger()  # File > Open
     assert win.files.loading() and win.files.loader.bar.isVisible()
     _opened(qtbot, win, ARMADILLO.name, timeout=180_000)
     ticks.stop()
@@ -220,7 +220,7 @@ def test_the_armadillo_opens_through_file_open_without_freezing(qtbot, window, m
     assert ticks.count >= 50 and ticks.bar_seen
     assert {f"Reading {ARMADILLO.name}…", "Preparing the solver…"} <= ticks.stages
     assert win.state.surface.full.n_faces > 300_000
-    qtbot.waitUntil(lambda: win.redraws > redraws, timeout=10_000)  # it is drawn
+    qtbot.waitUntil(lambda: win.frames.redraws > redraws, timeout=10_000)  # it is drawn
     _first_record_after_an_edit(qtbot, win)
 
 

@@ -81,7 +81,11 @@ def test_a_screenshot_never_replaces_what_it_shows(tmp_path):
 
 
 def _labels(win):
-    return win.st_level.text(), win.st_solver.text(), win.panel.solve_state.text()
+    return (
+        win.readout.level_label.text(),
+        win.readout.solver_label.text(),
+        win.panel.solve_state.text(),
+    )
 
 
 def test_a_result_summary_stays_with_the_state_it_solved(qtbot, window, tmp_path):
@@ -103,11 +107,11 @@ def test_a_result_summary_stays_with_the_state_it_solved(qtbot, window, tmp_path
     assert _labels(win)[0].startswith("Solved")
 
     # preserve off: plain FFD, no solver statistics
-    win.act_preserve.setChecked(False)
+    win.action_set.preserve.setChecked(False)
     level, solver, panel = _labels(win)
     assert (level, solver) == ("", "") and "plain free-form" in panel
-    assert win.st_state.text().endswith("Plain FFD")
-    win.act_preserve.setChecked(True)
+    assert win.readout.state_label.text().endswith("Plain FFD")
+    win.action_set.preserve.setChecked(True)
     wait_idle(qtbot, win)
 
     # open another document: its own (at rest) state, nothing of the example
@@ -130,10 +134,13 @@ def test_status_says_solving_stopped_and_dragging(qtbot, window):
     win.doc.selection.select([pickable_node(win)])
     win.type_position(0, float(win.viewport.nodes[win.doc.selection.rows[0], 0]) + 0.2)
     assert win.is_solving()
-    assert win.st_state.text().endswith("Solving…") and "Solving" in win.panel.solve_state.text()
-    win.act_stop.trigger()
+    assert (
+        win.readout.state_label.text().endswith("Solving…")
+        and "Solving" in win.panel.solve_state.text()
+    )
+    win.action_set.stop.trigger()
     assert not win.is_solving()
-    assert win.st_state.text().endswith("Stopped"), win.st_state.text()
+    assert win.readout.state_label.text().endswith("Stopped"), win.readout.state_label.text()
     assert "Converged" not in win.panel.solve_state.text()
     wait_idle(qtbot, win)
 
@@ -144,16 +151,18 @@ def test_status_says_solving_stopped_and_dragging(qtbot, window):
     )
     QTest.mouseMove(win.viewport, point(start + np.array([25, -15])))
     qtbot.wait(20)
-    assert win.st_state.text().endswith("Dragging"), "the chip changes when a drag starts"
+    assert win.readout.state_label.text().endswith("Dragging"), (
+        "the chip changes when a drag starts"
+    )
     QTest.mouseRelease(
         win.viewport,
         Qt.MouseButton.LeftButton,
         Qt.KeyboardModifier.NoModifier,
         point(start + np.array([25, -15])),
     )
-    assert win.st_state.text().endswith("Solving…")
+    assert win.readout.state_label.text().endswith("Solving…")
     wait_idle(qtbot, win)
-    assert win.st_state.text().endswith("Converged")
+    assert win.readout.state_label.text().endswith("Converged")
     assert {"Solving…", "Stopped", "Dragging", "Converged"} <= set(seen)
 
 
@@ -168,7 +177,7 @@ def test_a_model_opened_from_a_file_fills_the_view(qtbot, themed_app, tmp_path):
     corners = np.array(
         [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
     )
-    xy, _, visible = vp.projection().project(corners)
+    xy, _, visible = vp.camera_control.projection().project(corners)
     assert visible.all()
     span = (xy.max(axis=0) - xy.min(axis=0)) / np.array([vp.width(), vp.height()])
     assert span.max() > 0.5, f"the model spans only {span} of the view"
@@ -229,7 +238,7 @@ for _ in range(20):
     app.processEvents()
 win.set_pins([0], True)
 QMessageBox.question = staticmethod(lambda *a, **k: QMessageBox.StandardButton.Discard)
-win.act_quit.trigger()
+win.action_set.quit.trigger()
 for _ in range(20):
     app.processEvents()
 print("closed", win.isVisible())

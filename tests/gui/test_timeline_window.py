@@ -31,7 +31,7 @@ def scrub(qtbot, win, frm, to, steps=6):
     from PySide6.QtCore import Qt
     from PySide6.QtTest import QTest
 
-    bar = win.timeline_panel.scrubber
+    bar = win.timeline.panel.scrubber
     y = bar.height() // 2
     x0, x1 = bar.x_of(frm), bar.x_of(to)
     none = Qt.KeyboardModifier.NoModifier
@@ -60,7 +60,7 @@ def test_keys_scrub_to_a_solved_in_between_frame_undo_and_redo(qtbot, sphere, tm
     from isochor.core.solve.generators import run_to_end
 
     win = sphere
-    tool, panel, vp = win.timeline, win.timeline_panel, win.viewport
+    tool, panel, vp = win.timeline, win.timeline.panel, win.viewport
     bar = panel.scrubber
     st = win.state
     size, rest_volume = st.surface.size, st.surface.rest_volume
@@ -79,14 +79,16 @@ def test_keys_scrub_to_a_solved_in_between_frame_undo_and_redo(qtbot, sphere, tm
     assert tool.frame == 10 and tool.showing, "after the last key: its pose is shown"
     assert "after the last key (0)" in panel.info.text()
     row = pickable_node(win)
-    start = vp.projection().project(vp.nodes[row])[0][0]
+    start = vp.camera_control.projection().project(vp.nodes[row])[0][0]
     QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(start))
     for i in range(1, 7):
         QTest.mouseMove(vp, point(start + np.array([40, -50]) * i / 6))
         qtbot.wait(5)
     win.session.flush()
     assert not tool.showing, "a drag shows the working pose, which it moves"
-    assert np.allclose(vp.projection().project(vp.nodes[row])[0][0], start + (40, -50), atol=1)
+    assert np.allclose(
+        vp.camera_control.projection().project(vp.nodes[row])[0][0], start + (40, -50), atol=1
+    )
     QTest.mouseRelease(
         vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(start + (40, -50))
     )
@@ -199,7 +201,7 @@ def test_a_scenario_with_poses_round_trips_through_the_window(qtbot, themed_app,
     win = open_window(qtbot, Document.open(src))
     wait_idle(qtbot, win)
     activate(qtbot, win)
-    panel, bar = win.timeline_panel, win.timeline_panel.scrubber
+    panel, bar = win.timeline.panel, win.timeline.panel.scrubber
     assert bar.keys == (0, 6, 12), "a window opened on poses shows its keys"
     assert (panel.start.value(), panel.end.value()) == (0, 12)
     assert panel.rate.value() == 30 and panel.interpolation.currentData() == "smooth"
@@ -212,7 +214,7 @@ def test_a_scenario_with_poses_round_trips_through_the_window(qtbot, themed_app,
     win.session.flush()
     volume = win.viewport.model_volume / win.state.surface.rest_volume
     assert volume == pytest.approx(0.975, abs=win.state.problem.scenario.tol_volume)
-    assert "(target 97.5 % at frame 9)" in win.st_volume.text()
+    assert "(target 97.5 % at frame 9)" in win.readout.volume_label.text()
     assert win.timeline.label.text() == "Frame 9 · solved"
 
     out = tmp_path / "saved.json"

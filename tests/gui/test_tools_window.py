@@ -59,7 +59,7 @@ def layer_x(win, i: int = 2) -> np.ndarray:
     row = max((r for r in rows if visible[r]), key=lambda r: -abs(xy[r, 0] - 400))
     click(win, row)
     assert list(win.doc.selection.rows) == [row]
-    win.act_select_layer[0].trigger()
+    win.action_set.select_layer[0].trigger()
     assert sorted(win.doc.selection.rows) == sorted(rows)
     return np.array(sorted(rows))
 
@@ -73,7 +73,7 @@ def test_scale_a_layer_by_a_typed_factor_along_z_and_undo(qtbot, sphere):
     centre = before[rows].mean(axis=0)
     hover(win, (vp.width() * 0.7, vp.height() * 0.3))
     press_keys(vp, "sz0.5")
-    assert vp.transforming and win.doc.drag is not None
+    assert vp.transform_tool.running and win.doc.drag is not None
     message = win.statusBar().currentMessage()
     assert message == "Scale 0.5 along z — type a value, X/Y/Z lock, Enter confirms, Esc cancels"
     # the guide line is drawn in z's colour through the centre
@@ -84,7 +84,7 @@ def test_scale_a_layer_by_a_typed_factor_along_z_and_undo(qtbot, sphere):
     assert np.allclose(ends[:, :2], centre[:2]) and ends[1, 2] > ends[0, 2]
     save_shot(win, "tools_scale_typed")
     press_keys(vp, "\n")
-    assert not vp.transforming and win.undo_stack.count() == 1
+    assert not vp.transform_tool.running and win.undo_stack.count() == 1
     assert win.undo_stack.undoText() == "Scale 9 nodes"
     start = win.session.last_solve_input[0]
     expect = before[rows].copy()
@@ -145,7 +145,7 @@ def test_rotate_and_grab_by_typed_values_and_escape(qtbot, sphere):
     win.session.flush()
     assert not np.allclose(vp.nodes[rows], now[rows]), "the view shows the gesture"
     press_keys(vp, "\x1b")
-    assert not vp.transforming and win.undo_stack.count() == 2 and not win.is_solving()
+    assert not vp.transform_tool.running and win.undo_stack.count() == 2 and not win.is_solving()
     assert np.array_equal(win.state.nodes, now)
     win.session.flush()
     assert np.allclose(vp.nodes, now)
@@ -176,7 +176,7 @@ def test_mouse_driven_scale_and_rotate_confirm_with_a_click(qtbot, sphere):
     rows = layer_x(win)
     before = np.array(win.state.nodes)
     centre = before[rows].mean(axis=0)
-    c = vp.projection().project(centre)[0][0]
+    c = vp.camera_control.projection().project(centre)[0][0]
     start = c + (60.0, 0.0)
     hover(win, start)
     press_keys(vp, "s")
@@ -186,7 +186,7 @@ def test_mouse_driven_scale_and_rotate_confirm_with_a_click(qtbot, sphere):
     assert message.startswith("Scale ") and float(message.split()[1]) == pytest.approx(2, abs=0.02)
     end = c + (120.0, 0.0)
     QTest.mouseClick(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(end))
-    assert not vp.transforming and win.undo_stack.undoText() == "Scale 9 nodes"
+    assert not vp.transform_tool.running and win.undo_stack.undoText() == "Scale 9 nodes"
     # the factor is the ratio of the mouse's distances from the centre (whole pixels)
     factor = np.hypot(*(np.round(end) - c)) / np.hypot(*(np.round(start) - c))
     assert factor == pytest.approx(2.0, abs=0.02)
@@ -196,7 +196,7 @@ def test_mouse_driven_scale_and_rotate_confirm_with_a_click(qtbot, sphere):
 
     # R with the mouse a quarter turn around the centre; a right click cancels
     now = np.array(win.state.nodes)
-    c = vp.projection().project(now[rows].mean(axis=0))[0][0]
+    c = vp.camera_control.projection().project(now[rows].mean(axis=0))[0][0]
     hover(win, c + (80.0, 0.0))
     press_keys(vp, "r")
     for a in np.linspace(0, np.pi / 2, 8)[1:]:
@@ -206,7 +206,7 @@ def test_mouse_driven_scale_and_rotate_confirm_with_a_click(qtbot, sphere):
     assert float(message.split()[1].rstrip("°")) == pytest.approx(90.0, abs=1.5)
     # the nodes turn on screen the way the mouse turned: counter-clockwise, a quarter
     win.session.flush()
-    proj = vp.projection()
+    proj = vp.camera_control.projection()
     far = max(rows, key=lambda r: np.hypot(*(proj.project(now[r])[0][0] - c)))
     a0 = proj.project(now[far])[0][0] - c
     a1 = proj.project(vp.nodes[far])[0][0] - c
@@ -214,7 +214,7 @@ def test_mouse_driven_scale_and_rotate_confirm_with_a_click(qtbot, sphere):
     assert turned == pytest.approx(90.0, abs=3.0)
     assert not np.allclose(vp.nodes[rows], now[rows])
     QTest.mouseClick(vp, Qt.MouseButton.RightButton, Qt.KeyboardModifier.NoModifier, point(c))
-    assert not vp.transforming and win.undo_stack.count() == 1
+    assert not vp.transform_tool.running and win.undo_stack.count() == 1
     assert np.array_equal(win.state.nodes, now)
 
 
@@ -234,7 +234,7 @@ def test_the_gizmo_arrow_moves_the_selection_along_its_axis(qtbot, sphere):
         assert actor.GetVisibility()
         assert np.allclose(actor.GetProperty().GetColor(), rgb(style_axis(axis)) / 255)
     # press on the x arrow's shaft, drag sideways
-    proj = vp.projection()
+    proj = vp.camera_control.projection()
     a, b = proj.project(np.array([gizmo.centre + [0.65 * gizmo.length, 0, 0], gizmo.tip("x")]))[0]
     before = np.array(win.state.nodes)
     QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, point(a))
@@ -271,26 +271,26 @@ def test_f_frames_the_selection_and_5_toggles_orthographic(qtbot, sphere):
     win.doc.selection.select([corner])
     distance = vp.camera.distance
     QTest.keyClick(vp, Qt.Key.Key_F)
-    xy = vp.projection().project(vp.nodes[corner])[0][0]
+    xy = vp.camera_control.projection().project(vp.nodes[corner])[0][0]
     assert np.hypot(*(xy - (vp.width() / 2, vp.height() / 2))) < 3, "the node is in the middle"
     assert vp.camera.distance < 0.7 * distance, "and closer"
     win.doc.selection.select([])
     QTest.keyClick(vp, Qt.Key.Key_F)  # nothing selected: the whole model
-    xy, _, visible = vp.projection().project(vp.nodes)
+    xy, _, visible = vp.camera_control.projection().project(vp.nodes)
     assert visible.all() and (xy >= 0).all() and (xy[:, 0] <= vp.width()).all()
     assert (xy[:, 1] <= vp.height()).all()
 
-    assert not vp.orthographic and not win.act_ortho.isChecked()
-    assert win.act_ortho in win.menuBar().actions()[3].menu().actions(), "in the View menu"
+    assert not vp.camera_control.orthographic and not win.action_set.ortho.isChecked()
+    assert win.action_set.ortho in win.menuBar().actions()[3].menu().actions(), "in the View menu"
     QTest.keyClick(vp, Qt.Key.Key_5)
-    assert vp.orthographic and win.act_ortho.isChecked()
+    assert vp.camera_control.orthographic and win.action_set.ortho.isChecked()
     assert vp.renderer.GetActiveCamera().GetParallelProjection()
     row = pickable_node(win, want_free=True)
     click(win, row)
     assert list(win.doc.selection.rows) == [row], "picking works in the orthographic view"
     save_shot(win, "tools_orthographic")
     QTest.keyClick(vp, Qt.Key.Key_5)
-    assert not vp.orthographic
+    assert not vp.camera_control.orthographic
 
 
 # -- selection helpers ----------------------------------------------------------------------
@@ -302,15 +302,15 @@ def test_select_row_face_invert_and_visible_only_box(qtbot, sphere):
     vp = win.viewport
     lat = win.state.lattice
     win.doc.selection.select([lat.index(2, 0, 1)])
-    win.act_select_line[1].trigger()  # Row Along Y
+    win.action_set.select_line[1].trigger()  # Row Along Y
     assert sorted(win.doc.selection.rows) == [lat.index(2, j, 1) for j in range(3)]
-    win.act_select_face.trigger()
+    win.action_set.select_face.trigger()
     assert sorted(win.doc.selection.rows) == [
         lat.index(2, j, k) for j in range(3) for k in range(3)
     ]
     assert "x max face" in win.statusBar().currentMessage()
     win.doc.selection.select([lat.index(1, 1, 1)])
-    win.act_select_face.trigger()  # the centre node is on no face
+    win.action_set.select_face.trigger()  # the centre node is on no face
     assert list(win.doc.selection.rows) == [lat.index(1, 1, 1)]
     assert "not on one face" in win.statusBar().currentMessage()
     QTest.keyClick(vp, Qt.Key.Key_I, Qt.KeyboardModifier.ControlModifier)
@@ -329,7 +329,7 @@ def test_select_row_face_invert_and_visible_only_box(qtbot, sphere):
     win.doc.selection.select([])
     box()
     assert len(win.doc.selection.rows) == 27
-    win.act_visible_only.setChecked(True)
+    win.action_set.visible_only.setChecked(True)
     win.doc.selection.select([])
     box()
     seen = set(win.doc.selection.rows.tolist())
@@ -358,7 +358,7 @@ def test_roles_have_shapes_and_the_legend_says_so(qtbot, sphere):
     assert (shapes[free] == glyphs.SPHERE).all()
     colours = drawn(win, "nodes", "rgb")
     assert (colours[a] == rgb(style.PINNED)).all() and (colours[b] == rgb(style.MOVED)).all()
-    legend = win.viewport._legend.text()
+    legend = win.viewport.colour_legend.text()
     for shape in ("cube", "ringed", "diamond"):
         assert style.SHAPES[shape] in legend
     save_shot(win, "tools_node_shapes")
