@@ -280,7 +280,7 @@ def test_the_drag_part_reaches_the_session_through_its_host_only(qtbot, problem)
     assert drags.take_near() is False
 
     # live: the timer starts a preview of the drag as it is now
-    drags.live = True
+    drags.set_live(True)
     before = doc.cell
     assert drags.begin()
     drags.move(delta)

@@ -218,7 +218,7 @@ class EditorSession(QObject):
 
     @live.setter
     def live(self, on: bool) -> None:
-        self.drags.live = bool(on)
+        self.drags.set_live(on)
 
     def begin_drag(self, verb: str = "Move") -> bool:
         """Start a drag (or a grab, rotate or scale: ``verb``) of the selection."""

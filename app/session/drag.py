@@ -65,7 +65,7 @@ class SessionDrag:
 
     def __init__(self, host: DragHost, parent: QObject | None = None) -> None:
         self.host = host
-        self.live = False  #: solve while dragging
+        self._live = False
         #: the timer of the preview solves: one restart at most every LIVE_MS
         self.timer = QTimer(parent)
         self.timer.setSingleShot(True)
@@ -160,9 +160,17 @@ class SessionDrag:
         what = plural(len(drag.rows)) if len(drag.rows) else "the handle"
         return f"Moving {what}{lock} — X/Y/Z lock an axis, Shift+X/Y/Z a plane, Esc cancels"
 
+    @property
+    def live(self) -> bool:
+        """Solve while dragging (live previews)."""
+        return self._live
+
+    def set_live(self, on: bool) -> None:
+        self._live = bool(on)
+
     def live_active(self) -> bool:
         """Live previews run: live is on and so is the volume constraint."""
-        return self.live and self.host.document().preserve
+        return self._live and self.host.document().preserve
 
     def _preview(self) -> None:
         """Restart the preview solve from the nodes on screen (free nodes where the last

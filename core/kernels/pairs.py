@@ -19,6 +19,10 @@ class Pairs:
         self.rho, self.alphas = np.empty(memory), np.empty(memory)
         self.head = self.count = 0
 
+    def forget(self) -> None:
+        """Drop every pair: the next direction is steepest descent (a restart)."""
+        self.count = 0
+
     def push(self, x_new, x, g_new, g) -> None:
         """Keep the pair ``(x_new - x, g_new - g)`` when its curvature ``s.y`` is positive
         beyond rounding."""

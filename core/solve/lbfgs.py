@@ -70,7 +70,7 @@ def lbfgs(
         if g_max <= gtol:
             return x, it, True
         if slope >= 0:  # not a descent direction: restart from steepest descent
-            pairs.count = 0
+            pairs.forget()
             d, h0 = -g, None
         if not pairs.count:  # first step: a move of at most 1% (10% preconditioned) of the size
             d = d * min(1.0, (0.01 if h0 is None else 0.1) / max(float(np.abs(d).max()), 1e-300))
