@@ -177,7 +177,7 @@ class Document:
 
     @property
     def preserve(self) -> bool:
-        """"Preserve volume" is on (off: plain FFD, nothing is solved)."""
+        """Whether "preserve volume" is on (off: plain FFD, nothing is solved)."""
         return self._preserve
 
     def set_preserve(self, on: bool) -> None:
