@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import io
 import re
-import time
 import warnings
 
 import numpy as np
@@ -308,7 +307,8 @@ def test_ascii_ply_keeps_its_extra_properties_and_faces():
     assert rewrite(data, ".ply", identity, identity_jacobian).data == data
 
 
-def test_binary_ply_of_346k_triangles_is_fast_and_exact():
+def test_binary_ply_of_346k_triangles_is_exact():
+    """(How fast: the benchmark's row "armadillo 346k: its PLY given back deformed".)"""
     data = model("armadillo_loop1_346k.ply").read_bytes()
     points = positions(data, ".ply")
     assert points.shape == (172966, 3)
@@ -317,14 +317,11 @@ def test_binary_ply_of_346k_triangles_is_fast_and_exact():
     calls = []
 
     def deform(x):
-        start = time.perf_counter()
-        out = affine(x)
-        calls.append(time.perf_counter() - start)
-        return out
+        calls.append(len(x))
+        return affine(x)
 
-    start = time.perf_counter()
     done = rewrite(data, ".ply", deform, pytest.fail)  # no normals: no Jacobian
-    assert time.perf_counter() - start - sum(calls) < 0.5 and len(calls) == 1
+    assert calls == [len(points)]  # the map is called once, on every position
     end = data.index(b"end_header\n") + 11
     block = end + 12 * len(points)
     assert done.data[:end] == data[:end] and done.data[block:] == data[block:]
