@@ -127,7 +127,7 @@ def test_camera_target_projects_to_the_widget_centre(proj):
     assert visible[0]
     # Widget pixels count rows from the top (0 .. H - 1), device pixels from the bottom, so
     # the centre row is H / 2 - 1. The target is on the view axis: its NDC is 0 up to the
-    # rounding of the view and projection matrices (~10 eps), W eps-sized pixels.
+    # rounding of the view and projection products (under 20 eps), W / 2 pixels per unit.
     tol = 10 * np.finfo(np.float64).eps * W
     assert xy[0, 0] == pytest.approx(W / 2, abs=tol)
     assert xy[0, 1] == pytest.approx(H / 2 - 1, abs=tol)
