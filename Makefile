@@ -3,7 +3,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 PYTHON ?= python3
 
-.PHONY: venv sysdeps run test lint bench assets clean
+.PHONY: venv sysdeps run test test-numpy lint bench assets clean
 
 # Debian system packages (Qt/VTK runtime libs, Xvfb); apt runs only if something is missing.
 sysdeps:
@@ -29,6 +29,11 @@ run: sysdeps venv
 
 test: sysdeps venv
 	$(PY) -m pytest -q $(ARGS)
+
+# the core and API tests on the NumPy path (what an install without numba runs): the
+# compiled kernels switched off, the GUI tests left out
+test-numpy: venv
+	ISOCHOR_NO_JIT=1 $(PY) -m pytest -q --ignore=tests/gui $(ARGS)
 
 # the same lint CI runs
 lint: venv

@@ -31,6 +31,10 @@ Modules: :mod:`~benchmarks.timing` (timings, memory, machine), :mod:`~benchmarks
 (the examples and draining a solve), :mod:`~benchmarks.tables` (Tables 1-2, start levels,
 first records), :mod:`~benchmarks.scale` (evaluation at scale, the armadillo),
 :mod:`~benchmarks.profiling` (where a solve's time goes, with cProfile),
+:mod:`~benchmarks.display` (the Display rate section) with :mod:`~benchmarks.drag_cases`
+(its solver measurements), :mod:`~benchmarks.first_evaluation` (a fresh process's first
+evaluation while the kernels load) and :mod:`~benchmarks.window` (the window's rows),
+:mod:`~benchmarks.sequences` (keyframed poses),
 :mod:`~benchmarks.constraints` (what each constraint costs: pairs, rows, measuring) with
 :mod:`~benchmarks.constraint_cases` (its cases) and :mod:`~benchmarks.constraints_report`
 (its Markdown), :mod:`~benchmarks.targets`,

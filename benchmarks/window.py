@@ -15,7 +15,11 @@ What it measures, each a median of the repeats:
   thread and the largest gap between two ticks is the longest time the GUI thread did not
   answer, from the press to the release solve's result (drawn or not);
 * the longest stall while the result is drawn at full resolution (after the solve ended),
-  reported on its own so that it is never hidden in the row before.
+  reported on its own so that it is never hidden in the row before;
+* closing the window while it solves: the armadillo opened in a new window each repeat, a
+  node dragged (live solving off), and once the release's solve has handed over its first
+  record, the time ``close()`` takes (it stops the solver, waiting at most half a second
+  for its thread, and releases VTK).
 
 The event loop is a real one (``QEventLoop.exec``) the whole time: nothing here sleeps on
 the GUI thread, so a gap is the window's own work or the solver thread's hold on the GIL.
@@ -41,10 +45,14 @@ MOVE_MS = 16
 TICK_MS = 4
 RATE_TARGET = 15.0  #: redraws a second while dragging, at least
 STALL_TARGET = 0.050  #: seconds, at most
+CLOSE_TARGET = 1.0  #: seconds ``close()`` takes while a solve runs, at most
+#: windows opened for the closing row (each opens the armadillo anew)
+CLOSE_REPEATS = 3
 
 WHAT_RATE = "window: redraws while dragging the 346k armadillo (ms a redraw)"
 WHAT_STALL = "window: longest GUI stall, drag and release solve, 346k armadillo"
 WHAT_FINAL = "window: longest GUI stall drawing the released result at full resolution"
+WHAT_CLOSE = "window: closing it while it solves the 346k armadillo"
 FINAL_WHY = (
     "one render of the full 346k triangles in software OpenGL (llvmpipe, 2 CPUs: 69-79 ms of "
     "the gap, the rest Qt's composition), which no step can split (preparing them runs in "
@@ -58,6 +66,7 @@ def _unmeasured(why: str) -> list[Row]:
         Row(WHAT_RATE, None, f">= {RATE_TARGET:g} a second", None, why),
         Row(WHAT_STALL, None, f"<= {1e3 * STALL_TARGET:g} ms", None, why),
         Row(WHAT_FINAL, None, f"<= {1e3 * STALL_TARGET:g} ms", None, why),
+        Row(WHAT_CLOSE, None, f"<= {1e3 * CLOSE_TARGET:g} ms", None, why),
     ]
 
 
@@ -72,6 +81,7 @@ def run_window(models: Path, repeats: int) -> list[Row]:
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     try:
         runs = _measure(path, max(1, repeats))
+        closes = [one_close(path) for _ in range(min(max(1, repeats), CLOSE_REPEATS))]
     except ImportError as exc:  # the window needs PySide6 and pyvistaqt
         return _unmeasured(f"the window's libraries are missing: {exc}")
     rate = Timing(tuple(1.0 / max(r["rate"], 1e-9) for r in runs))
@@ -100,10 +110,23 @@ def run_window(models: Path, repeats: int) -> list[Row]:
             final.median <= STALL_TARGET,
             "" if final.median <= STALL_TARGET else FINAL_WHY,
         ),
+        _close_row(closes),
     ]
     for r in rows:
         print(f"  {r.what}: {r.ms()} ms; {r.target}; {r.verdict()}")
     return rows
+
+
+def _close_row(closes: list[tuple[float, bool]]) -> Row:
+    """The closing row from :func:`one_close`'s runs: met when every window was still
+    solving as it closed and the median is within :data:`CLOSE_TARGET`."""
+    took = Timing(tuple(t for t, _ in closes))
+    solving = sum(s for _, s in closes)
+    met = took.median <= CLOSE_TARGET and solving == len(closes)
+    why = f"{solving} of {len(closes)} windows still solving as they closed"
+    if took.median > CLOSE_TARGET:
+        why += "; the solver's thread is waited for at most 0.5 s, the rest is releasing VTK"
+    return Row(WHAT_CLOSE, took, f"<= {1e3 * CLOSE_TARGET:g} ms", met, why)
 
 
 def _culprit(runs) -> str:
@@ -284,7 +307,9 @@ def one_drag(app, win, row: int, meter: _Meter) -> dict:
     }
 
 
-def _measure(path: Path, repeats: int) -> list[dict]:
+def _open_window(path: Path, prepared: bool = True):
+    """The editor window on the model at ``path``, shown (a QApplication made if needed);
+    ``prepared``: the levels set up first, as opening a file does in the background."""
     from PySide6.QtWidgets import QApplication
 
     from isochor.app.editor.document import Document
@@ -295,12 +320,57 @@ def _measure(path: Path, repeats: int) -> list[dict]:
     style.apply_dark_theme(app)
     doc = Document.open(path)
     prepare = getattr(doc.surface, "prepare", None)
-    if prepare is not None:  # what opening a file does in the background
+    if prepared and prepare is not None:
         prepare(doc.state.problem.options)
     win = MainWindow(doc)
     win.set_headless_errors()
     win.resize(1360, 860)
     win.show()
+    return app, win
+
+
+def one_close(path: Path) -> tuple[float, bool]:
+    """Open the model in a new window, drag a node (live solving off) and, once the solve
+    of the release has handed over its first record, close the window: the seconds
+    ``close()`` took, and whether the solve was still running as it closed.
+
+    The levels are not set up beforehand, so the release's solve is a model's first one
+    (the levels' set-up included) and lasts long enough to be closed on."""
+    from PySide6.QtCore import QPoint, Qt
+    from PySide6.QtTest import QTest
+
+    _, win = _open_window(path, prepared=False)
+    try:
+        run_until(lambda: win.viewport.paints > 0 and settled(win), 120)
+        row = drag_node(win)
+        vp = win.viewport
+        start = vp.projection().project(vp.nodes)[0][row]
+        moves = drag_path(start, 0.15)
+        left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
+
+        def at(xy) -> QPoint:
+            return QPoint(int(round(xy[0])), int(round(xy[1])))
+
+        QTest.mousePress(vp, left, none, at(start))
+        for xy in moves:
+            QTest.mouseMove(vp, at(xy))
+            run_until(lambda: False, MOVE_MS / 1000)
+        QTest.mouseRelease(vp, left, none, at(moves[-1]))
+        gen = win.worker.generation
+        run_until(lambda: any(g == gen for g, _ in win.session.accepted_log), 120)
+        solving = win.is_solving()
+        win.undo_stack.setClean()  # no question about unsaved edits
+        t = time.perf_counter()
+        win.close()
+        return time.perf_counter() - t, solving
+    finally:
+        win.undo_stack.setClean()
+        win.close()
+        win.shutdown()
+
+
+def _measure(path: Path, repeats: int) -> list[dict]:
+    app, win = _open_window(path)
     try:
         run_until(lambda: win.viewport.paints > 0 and settled(win), 120)
         win.action_set.live.setChecked(True)

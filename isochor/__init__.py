@@ -8,6 +8,9 @@ One distribution, one import name. The source folders of the repository install 
   pyvistaqt; imported only when the editor starts)
 - :mod:`isochor.assets` the sample models, example scenarios and the icon the program ships
 
+The package is typed: it ships the PEP 561 marker ``py.typed``, so type checkers read its
+annotations.
+
 ``import isochor`` is cheap: it imports neither numpy nor Qt. The Python API
 (:mod:`isochor.core.api`) is loaded on first use::
 

@@ -243,26 +243,30 @@ def test_the_environment_variable_switches_the_kernels_off():
 
 
 def test_the_first_evaluation_does_not_wait_for_the_compiler():
-    """A slow compiler (here: a stand-in that sleeps) never delays an evaluation: they take
-    the NumPy path until it is done, then the compiled one."""
+    """A slow compiler (here: a stand-in that finishes only when the test lets it, after the
+    evaluation has returned) never delays an evaluation: they take the NumPy path until it
+    is done, then the compiled one. An evaluation that waited would return only after the
+    stand-in gave up waiting and had set its kernels. (How long the first evaluation of a
+    fresh process takes while the real kernels load: the benchmark's Display rate row.)"""
     out = _child(
         textwrap.dedent("""
-        import time
+        import threading
         from isochor.core import kernels
+        let_finish = threading.Event()
         def slow_load():
-            time.sleep(3)
+            let_finish.wait(60)
             kernels._state.kernels = 'stand-in'
         kernels._load = slow_load
         """)
         + EVALUATE
         + textwrap.dedent("""
-        t = time.perf_counter()
         evaluate()
-        took = time.perf_counter() - t
-        print(kernels.status(), took < 2.5, kernels.ready(30), kernels._state.kernels)
+        print(kernels.status(), kernels._state.kernels)
+        let_finish.set()
+        print(kernels.ready(30), kernels._state.kernels)
         """)
     )
-    assert out.split() == ["loading", "True", "True", "stand-in"], out
+    assert out.split() == ["loading", "None", "True", "stand-in"], out
 
 
 def test_numba_caches_in_a_user_folder(tmp_path):

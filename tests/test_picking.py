@@ -125,9 +125,12 @@ def test_a_single_point_is_accepted_as_a_row():
 def test_camera_target_projects_to_the_widget_centre(proj):
     xy, _, visible = proj.project(TARGET)
     assert visible[0]
-    # Within a pixel: widget pixels count rows from the top, device pixels from the bottom.
-    assert xy[0, 0] == pytest.approx(W / 2, abs=1.0)
-    assert xy[0, 1] == pytest.approx(H / 2, abs=1.0)
+    # Widget pixels count rows from the top (0 .. H - 1), device pixels from the bottom, so
+    # the centre row is H / 2 - 1. The target is on the view axis: its NDC is 0 up to the
+    # rounding of the view and projection products (under 20 eps), W / 2 pixels per unit.
+    tol = 10 * np.finfo(np.float64).eps * W
+    assert xy[0, 0] == pytest.approx(W / 2, abs=tol)
+    assert xy[0, 1] == pytest.approx(H / 2 - 1, abs=tol)
 
 
 def test_viewport_offset_round_trips():

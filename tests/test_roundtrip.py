@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import io
 import re
-import time
 import warnings
 
 import numpy as np
@@ -172,10 +171,15 @@ def test_normals_follow_the_central_difference_jacobian():
     points, normals = obj_rows(data, b"v"), obj_rows(data, b"vn")
     new = obj_rows(rewrite(data, ".obj", wavy, wavy_jacobian).data, b"vn")
     at = points[obj_normal_vertex(data)]
-    np.testing.assert_allclose(central_jacobian(wavy, at), wavy_jacobian(at), atol=1e-8)
-    np.testing.assert_allclose(
-        new, inverse_transpose(central_jacobian(wavy, at), normals), atol=1e-8
-    )
+    # central differences, h = 1e-6: truncation h^2/6 |f'''| (|f'''| <= 0.1 * 27) and the
+    # rounding of the steps and of f, at most eps (|f| + |J| |x|) / h (|J| <= 1.3)
+    h, eps = 1e-6, np.finfo(np.float64).eps
+    fd = h**2 / 6 * 2.7 + eps * (np.abs(wavy(at)).max() + 1.3 * np.abs(at).max()) / h
+    jac = central_jacobian(wavy, at)
+    np.testing.assert_allclose(jac, wavy_jacobian(at), rtol=0, atol=fd)
+    # unit(J^-T n) moves at most |J^-1| |dJ| when J moves by dJ, and |dJ|_2 <= 3 fd
+    inv = np.linalg.norm(np.linalg.inv(wavy_jacobian(at)), 2, axis=(1, 2)).max()
+    np.testing.assert_allclose(new, inverse_transpose(jac, normals), rtol=0, atol=3 * fd * inv)
     assert np.allclose(np.linalg.norm(new, axis=1), 1.0, atol=1e-14)
 
 
@@ -308,7 +312,8 @@ def test_ascii_ply_keeps_its_extra_properties_and_faces():
     assert rewrite(data, ".ply", identity, identity_jacobian).data == data
 
 
-def test_binary_ply_of_346k_triangles_is_fast_and_exact():
+def test_binary_ply_of_346k_triangles_is_exact():
+    """(How fast: the benchmark's row "armadillo 346k: its PLY given back deformed".)"""
     data = model("armadillo_loop1_346k.ply").read_bytes()
     points = positions(data, ".ply")
     assert points.shape == (172966, 3)
@@ -317,14 +322,11 @@ def test_binary_ply_of_346k_triangles_is_fast_and_exact():
     calls = []
 
     def deform(x):
-        start = time.perf_counter()
-        out = affine(x)
-        calls.append(time.perf_counter() - start)
-        return out
+        calls.append(len(x))
+        return affine(x)
 
-    start = time.perf_counter()
     done = rewrite(data, ".ply", deform, pytest.fail)  # no normals: no Jacobian
-    assert time.perf_counter() - start - sum(calls) < 0.5 and len(calls) == 1
+    assert calls == [len(points)]  # the map is called once, on every position
     end = data.index(b"end_header\n") + 11
     block = end + 12 * len(points)
     assert done.data[:end] == data[:end] and done.data[block:] == data[block:]

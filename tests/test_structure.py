@@ -565,6 +565,7 @@ def test_wheel_ships_one_import_name(tmp_path):
         entry_points = archive.read(dist_info + "entry_points.txt").decode()
         metadata = archive.read(dist_info + "METADATA").decode()
         modules = {n: archive.read(n).decode() for n in names if n.endswith(".py")}
+        typed = archive.read("isochor/py.typed") if "isochor/py.typed" in names else None
 
     stray = [n for n in names if not n.startswith(("isochor/", dist_info))]
     assert not stray, f"wheel entries outside isochor/ and {dist_info}: {stray}"
@@ -575,8 +576,10 @@ def test_wheel_ships_one_import_name(tmp_path):
         "isochor/core/solve/multilevel.py",
         "isochor/app/cli/main.py",
         "isochor/assets/__init__.py",
+        "isochor/py.typed",  # PEP 561: users' type checkers read the annotations
     }
     assert required <= set(names), f"missing from the wheel: {sorted(required - set(names))}"
+    assert typed == b"", "py.typed is an empty marker"
     assert f"\nVersion: {version}\n" in metadata
 
     scripts = configparser.ConfigParser(delimiters=("=",))
