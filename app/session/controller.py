@@ -240,14 +240,7 @@ class EditorSession(DragMixin, QObject):
         ``near``: the nodes are a live drag's last frame."""
         self._deferred = False
         gen = self.worker.start(
-            st.surface,
-            nodes,
-            fixed,
-            goal=st.goal,
-            options=st.problem.options,
-            handles=handles,
-            live=live,
-            near=near,
+            st.problem, nodes, fixed, goal=st.goal, handles=handles, live=live, near=near
         )
         self._accept_gen = gen
         if not self._live_preview:

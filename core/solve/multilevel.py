@@ -30,8 +30,8 @@ import numpy as np
 from .. import kernels
 from ..errors import IsochorError
 from ..goal.anchor import held_face
-from ..goal.constraints import Goal
 from ..goal.handles import Handle, HandleSystem, handle_rows
+from ..goal.spec import Goal
 from ..goal.symmetry import Mirror
 from .generators import relay
 from .outcome import outcome, preview
