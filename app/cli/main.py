@@ -90,7 +90,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not debug:  # numpy's overflow warnings and the like: never on the user's screen
                 warnings.simplefilter("ignore")
             args = _parser().parse_args(list(sys.argv[1:] if argv is None else argv))
-            return args.run(args)
+            status = args.run(args)
+            interrupts.commit()  # a run that wrote nothing: a signal it lost is answered
+            return status
     except BaseException as exc:
         # a plain store first (no call, so no signal handler can run before it): from here
         # on a signal is only noted, and the way out says one thing
@@ -113,15 +115,15 @@ def entry() -> NoReturn:
 
 def _status(exc: BaseException, debug: bool) -> int:
     """The one line and the exit status for what ended the run."""
-    if isinstance(exc, IsochorError):
-        return _fail(exc)
     if isinstance(exc, interrupts.Interrupted):
         return _fail(f"interrupted ({exc.name}); nothing was written", exc.status)
-    if isinstance(exc, KeyboardInterrupt):
-        return _fail("interrupted (SIGINT); nothing was written", 128 + 2)
     if interrupts.state.raised is not None:  # a signal's exception that came out as another
         signal = interrupts.Interrupted(interrupts.state.raised)
         return _fail(f"interrupted ({signal.name}); nothing was written", signal.status)
+    if isinstance(exc, IsochorError):
+        return _fail(exc)
+    if isinstance(exc, KeyboardInterrupt):
+        return _fail("interrupted (SIGINT); nothing was written", 128 + 2)
     if isinstance(exc, SystemExit):  # --help, --version, a usage error: argparse has spoken
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     if isinstance(exc, MemoryError):
@@ -302,9 +304,10 @@ def _solve(args: argparse.Namespace) -> int:
             files.append((o, exported.data))
         else:
             files.append((o, (json.dumps(report, indent=2, allow_nan=False) + "\n").encode()))
-    # a signal stops the run until the first output is renamed into place; from then on
-    # the run completes (the files are in place, so exit 0 or 3 is the truth)
-    write_outputs(files, on_commit=interrupts.hold)
+    # a signal received until the first output is renamed into place stops the run, even
+    # one whose exception was lost (interrupts.commit); from then on the run completes (the
+    # files are in place, so exit 0 or 3 is the truth)
+    write_outputs(files, on_commit=interrupts.commit)
     for note in exported.notes if exported is not None else ():
         print(f"isochor: note: {note}", file=sys.stderr)
     _summary(result, args, console)

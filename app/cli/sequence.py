@@ -80,7 +80,7 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
     files = list(zip(outputs, data))
     if report:
         files.append((outputs[-1], (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode()))
-    write_outputs(files, on_commit=interrupts.hold)
+    write_outputs(files, on_commit=interrupts.commit)  # a signal received so far stops it
     for note in notes:
         print(f"isochor: note: {note}", file=sys.stderr)
     if not args.quiet:
