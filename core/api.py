@@ -82,7 +82,7 @@ class Session:
     frame : ``(origin, axes)``: an explicit lattice box instead (rows of ``axes`` are its
         three edge vectors)
     goal : what the solve holds, by the keywords of
-        :data:`~isochor.core.goal.constraints.GOAL_FIELDS` (each field's ``keyword``):
+        :data:`~isochor.core.goal.spec.GOAL_FIELDS` (each field's ``keyword``):
 
         - ``target``: the volume to reach, relative to the model's (1 keeps it)
         - ``preserve``: ``"total"`` (one volume, the default) or ``"per-body"`` (each

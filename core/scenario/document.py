@@ -26,7 +26,7 @@ Version 3 adds direct manipulation and symmetric editing::
                  "target_volume_ratio": 0.9}],   keyframed edits (scenario.poses)
       "timeline": {"start": 0, "end": 24, "rate": 24, "interpolation": "smooth"}
 
-Version 2 adds what a solve holds besides the volume (:class:`isochor.core.goal.constraints.Goal`);
+Version 2 adds what a solve holds besides the volume (:class:`isochor.core.goal.spec.Goal`);
 a file that uses none of it is still written as version 1, and version 1 files read as
 before::
 
@@ -77,7 +77,7 @@ from .poses import Timeline
 FORMAT = "isochor-scenario"
 VERSION = 3
 VERSIONS = (1, 2, 3)
-#: the keys version 2 added: the goal's (:data:`isochor.core.goal.constraints.GOAL_FIELDS`)
+#: the keys version 2 added: the goal's (:data:`isochor.core.goal.spec.GOAL_FIELDS`)
 V2_KEYS = tuple(f.key for f in GOAL_FIELDS if f.version == 2)
 #: the keys version 3 added
 V3_KEYS = ("handles", *(f.key for f in GOAL_FIELDS if f.version == 3), "poses", "timeline")
@@ -88,7 +88,7 @@ GOAL_DEFAULTS = {f.key: f.default for f in GOAL_FIELDS if f.version == 2}
 #: a scenario is a few kilobytes; anything larger than this is not one
 MAX_SCENARIO_BYTES = 16 * 2**20
 #: the tolerances: the range the solver is meant for (the volume ratio's is
-#: :data:`isochor.core.goal.constraints.RATIO_RANGE`)
+#: :data:`isochor.core.goal.spec.RATIO_RANGE`)
 TOLERANCE_RANGE = (1e-12, 0.5)
 
 
@@ -291,7 +291,9 @@ class Scenario:
 
     def checked(self, changes: dict[str, Any]) -> Scenario:
         """``scenario`` with ``changes``, each checked as the scenario file's field would be
-        (the same one-line errors: ``lattice.nodes: each axis needs 2 to 10 nodes``)."""
+        (the same one-line errors: ``lattice.nodes: each axis needs 2 to 10 nodes``).
+        ``changes`` names ``lattice_nodes``, ``padding``, ``frame``, ``moves`` (a new
+        lattice: the old edits go) and the goal's fields by their scenario keys."""
         doc = self.to_dict()
         doc["model"] = {"builtin": "sphere"}  # the model is not what is checked here
         lat = doc["lattice"]
