@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from isochor.core.lattice import Lattice
 from isochor.core.mesh import TriMesh
+from isochor.core.scenario.problem import Problem
 from isochor.core.solve.generators import run_to_end
-from isochor.core.solve.multilevel import EmbeddedSurface, Progress, SolveResult, solve
+from isochor.core.solve.multilevel import EmbeddedSurface, Progress, SolveResult
 from isochor.core.solve.solver import SolverOptions
 
 #: the examples of the paper's Table 1 that ship with Isochor (the cow needs a model file)
@@ -40,17 +41,18 @@ class Run:
 
 
 def run_solve(
-    surface: EmbeddedSurface,
+    problem: Problem,
     nodes: np.ndarray,
     fixed: np.ndarray,
     options: SolverOptions,
     **kwargs,
 ) -> Run:
-    """Drain ``solve`` (keyword arguments passed on) and keep every record.
+    """Drain the problem's solve (:meth:`Problem.solve`, keyword arguments passed on) and
+    keep every record.
 
     Parameters
     ----------
-    surface : the embedded surface; its levels are set up by the first solve on it
+    problem : the problem; its surface's levels are set up by the first solve on it
     nodes : (n, 3) start node positions
     fixed : (n,) bool, pinned and moved nodes
     options : the solver's options
@@ -63,7 +65,7 @@ def run_solve(
             first.append(time.perf_counter() - t0)
         records.append(record)
 
-    gen = solve(surface, nodes, fixed, options=options, **kwargs)
+    gen = problem.solve(nodes, fixed, options=options, **kwargs)
     t0 = time.perf_counter()
     result = run_to_end(gen, keep)
     wall = time.perf_counter() - t0
@@ -94,11 +96,12 @@ def median_run(runs: Sequence[Run]) -> Run:
 
 @dataclass
 class Case:
-    """A paper example made ready to solve: the lattice, the pyramid, the edit."""
+    """A paper example made ready to solve: the problem (its lattice and goal), the
+    pyramid it is solved on, the edit."""
 
     key: str
-    lattice: Lattice
-    levels: list[TriMesh]
+    problem: Problem
+    levels: list[TriMesh]  #: the pyramid the case solves on (the problem's, or a cut of it)
     nodes: np.ndarray  #: (n, 3) start node positions
     fixed: np.ndarray  #: (n,) bool
     options: SolverOptions
@@ -108,12 +111,21 @@ class Case:
     def title(self) -> str:
         return TITLES.get(self.key, self.key)
 
+    @property
+    def lattice(self) -> Lattice:
+        return self.problem.surface.lattice
+
     def surface(self, upto: int | None = None, only: int | None = None) -> EmbeddedSurface:
         """A fresh surface: levels ``0..upto``, or the single level ``only``."""
         if only is not None:
             return EmbeddedSurface(self.lattice, [self.levels[only]])
         levels = self.levels if upto is None else self.levels[: upto + 1]
         return EmbeddedSurface(self.lattice, levels)
+
+    def on(self, upto: int | None = None, only: int | None = None) -> Problem:
+        """The problem on a fresh surface (see :meth:`surface`): solves on it share its
+        set-up caches."""
+        return replace(self.problem, surface=self.surface(upto, only))
 
     @property
     def size(self) -> float:
@@ -127,7 +139,7 @@ def example_case(name: str) -> Case:
     from isochor.core.scenario.problem import build
 
     p = build(example_scenario(name))
-    return Case(name, p.surface.lattice, list(p.surface.levels), p.nodes, p.fixed, p.options)
+    return Case(name, p, list(p.surface.levels), p.nodes, p.fixed, p.options)
 
 
 def cow_case(models: Path) -> tuple[Case | None, str]:
@@ -141,9 +153,7 @@ def cow_case(models: Path) -> tuple[Case | None, str]:
         return None, f"cow row skipped: {exc} (isochor.core.scenario.paper_models)"
     p = build(cow_bend_scenario(models))
     note = "levels " + ", ".join(str(m.n_faces) for m in p.surface.levels)
-    case = Case(
-        "cow-bend", p.surface.lattice, list(p.surface.levels), p.nodes, p.fixed, p.options, note
-    )
+    case = Case("cow-bend", p, list(p.surface.levels), p.nodes, p.fixed, p.options, note)
     return case, ""
 
 

@@ -33,7 +33,7 @@ from benchmarks.constraints import (
     console_line,
     time_pair,
 )
-from isochor.core.goal.constraints import Goal
+from isochor.core.goal.spec import Goal
 from isochor.core.mesh import TriMesh
 from isochor.core.scenario.document import Move, Scenario
 from isochor.core.scenario.problem import Model, Problem, build, default_lattice_shape, load_model
@@ -51,7 +51,7 @@ def _goal_pair(p: Problem, constraint: str, key: str, case: str, field_: str, va
         Variant(lab, p.nodes, p.fixed, dataclasses.replace(p.scenario.goal, **{field_: val}))
         for val, lab in zip(values, labels)
     )
-    return Pair(constraint, key, case, p.surface, p.options, on, off)
+    return Pair(constraint, key, case, p, on, off)
 
 
 def anchor_pair(model: Model, key: str, name: str) -> Pair:
@@ -67,7 +67,7 @@ def anchor_pair(model: Model, key: str, name: str) -> Pair:
     on, off = (Variant(a, nodes, fixed, Goal(anchor=a)) for a in ("far-side", "none"))
     shape = "x".join(map(str, lat.shape))
     case = f"{name}, {shape} lattice, a corner dragged {DRAG:g} of the lattice size"
-    return Pair("anchor", key, case, p.surface, p.options, on, off)
+    return Pair("anchor", key, case, p, on, off)
 
 
 def squash_problem(model: Model, name: str, shape=(4, 3, 3)) -> Problem:
@@ -103,8 +103,7 @@ def axis_pin_pair(model: Model, name: str) -> Pair:
         "axis pins",
         "cow-squash",
         case,
-        p.surface,
-        p.options,
+        p,
         Variant("z only", loose.nodes, loose.fixed, goal),
         Variant("x, y, z", p.nodes, p.fixed, goal),
     )
@@ -194,7 +193,7 @@ def pairs(
         ("anchor: cow", COW, lambda m: anchor_pair(m, "cow-drag", "cow")),
         ("fold guard: kitten bend", KITTEN, lambda m: _fold(_bend(m), "kitten-bend")),
         ("fold guard: cow shrink", COW, lambda m: _fold(
-            _problem(m, "cow", target_volume_ratio=SHRINK), "cow-shrink")),
+            _problem(m, "cow", goal=Goal(target_ratio=SHRINK)), "cow-shrink")),
         ("fold guard: cow bend", COW, lambda m: _fold(_bend(m), "cow-bend")),
         ("per body: two spheres", None, lambda _: body_pair(
             _two_sphere_model(spheres), "two-spheres", "two spheres")),

@@ -20,7 +20,8 @@ import numpy as np
 
 from benchmarks.cases import run_solve
 from benchmarks.timing import Timing
-from isochor.core.goal.constraints import Goal
+from isochor.core.goal.spec import Goal
+from isochor.core.scenario.problem import Problem
 from isochor.core.solve.multilevel import EmbeddedSurface, SolveResult
 from isochor.core.solve.solver import SolverOptions
 
@@ -52,10 +53,17 @@ class Pair:
     constraint: str  #: one of :data:`CONSTRAINTS`
     key: str  #: short name of the case ("cow-bend", ...)
     case: str  #: what the case is, for the table
-    surface: EmbeddedSurface
-    options: SolverOptions
+    problem: Problem  #: the model, its lattice and pyramid: both variants solve on it
     on: Variant
     off: Variant
+
+    @property
+    def surface(self) -> EmbeddedSurface:
+        return self.problem.surface
+
+    @property
+    def options(self) -> SolverOptions:
+        return self.problem.options
 
 
 @dataclass
@@ -165,7 +173,7 @@ def time_pair(pair: Pair, repeats: int) -> ConstraintRow:
     """Time both variants of ``pair``: one untimed solve each, then ``repeats`` alternating."""
 
     def once(v: Variant):
-        return run_solve(pair.surface, v.nodes, v.fixed, pair.options, goal=v.goal)
+        return run_solve(pair.problem, v.nodes, v.fixed, pair.options, goal=v.goal)
 
     once(pair.off)  # sets the levels up
     first = once(pair.on)  # and the constraint's own parts

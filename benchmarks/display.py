@@ -102,8 +102,7 @@ def _multilevel_row(what: str, problem, repeats: int) -> Row:
     in work (steps times triangles). The check on the full mesh (volume, det J at every
     vertex) comes after the result is shown; its time is given beside."""
     x, fixed, _ = dc.dragged(problem)
-    s = problem.surface
-    case = Case(what, s.lattice, list(s.levels), x, fixed, problem.options)
+    case = Case(what, problem, list(problem.surface.levels), x, fixed, problem.options)
     r = table1_row(case, max(1, repeats // 2))
     t1, t2 = (Timing(tuple(run.times[-1] for run in runs)) for runs in (r.t1_runs, r.t2_runs))
     check = Timing(tuple(run.wall - run.times[-1] for run in r.t2_runs))

@@ -21,7 +21,7 @@ from isochor.core.goal.folds import FoldGuard
 from isochor.core.scenario.document import Scenario
 from isochor.core.scenario.problem import build, default_lattice_shape, load_model
 from isochor.core.solve.generators import run_to_end
-from isochor.core.solve.multilevel import EmbeddedSurface, solve
+from isochor.core.solve.multilevel import EmbeddedSurface
 
 #: a drag frame moves the dragged node by this much of the lattice size
 FRAME_MOVE = 0.003
@@ -88,7 +88,7 @@ def drag(problem, repeats: int, frames: int = 10, options=None) -> Drag:
     surface, opts = problem.surface, options or problem.options
     size = surface.lattice.size
     x, fixed, r = dragged(problem)
-    start = run_to_end(solve(surface, x, fixed, options=opts))
+    start = run_to_end(problem.solve(x, fixed, options=opts))
     frame_t, release_t, frames_ok, release_ok, level = [], [], True, True, 0
     for rep in range(repeats + 1):
         result = start  # every repeat is the same drag, from the same solved edit
@@ -96,13 +96,13 @@ def drag(problem, repeats: int, frames: int = 10, options=None) -> Drag:
             x = np.array(result.nodes)
             x[r] += FRAME_MOVE * size
             t0 = time.perf_counter()
-            result = run_to_end(solve(surface, x, fixed, options=opts, live=True))
+            result = run_to_end(problem.solve(x, fixed, options=opts, live=True))
             if rep:
                 frame_t.append(time.perf_counter() - t0)
                 frames_ok &= bool(result.converged)
             level = result.terminal_level
         t0 = time.perf_counter()
-        result = run_to_end(solve(surface, np.array(result.nodes), fixed, options=opts, near=True))
+        result = run_to_end(problem.solve(np.array(result.nodes), fixed, options=opts, near=True))
         if rep:
             release_t.append(time.perf_counter() - t0)
             release_ok &= bool(result.converged)
@@ -119,7 +119,7 @@ def first_record(problem) -> tuple[float, float]:
     out = []
     for surface in (fresh, EmbeddedSurface(fresh.lattice, fresh.levels).prepare()):
         t0 = time.perf_counter()
-        run = solve(surface, x, fixed, options=problem.options)
+        run = replace(problem, surface=surface).solve(x, fixed)
         next(run)
         out.append(time.perf_counter() - t0)
         run.close()
@@ -172,11 +172,11 @@ def step_overhead(problem, repeats: int, options=None) -> Timing:
         (FoldGuard, "value_and_gradient"),
         (FoldGuard, "_evaluate"),
     )
-    run_to_end(solve(problem.surface, x, fixed, options=opts))  # set-up
+    run_to_end(problem.solve(x, fixed, options=opts))  # set-up
     per_step = []
     for _ in range(repeats):
         with _Clock(*watched) as clock:
-            result = run_to_end(solve(problem.surface, x, fixed, options=opts))
+            result = run_to_end(problem.solve(x, fixed, options=opts))
         steps = sum(s.steps for s in result.levels)
         level_s = sum(s.time_s for s in result.levels)
         per_step.append(max(level_s - clock.seconds, 0.0) / max(steps, 1))
@@ -203,7 +203,7 @@ def dense_drag(problem) -> tuple[float, bool, str]:
     x[r] += 0.15 * lattice.size
     fixed[r] = True
     t0 = time.perf_counter()
-    result = run_to_end(solve(dense.surface, x, fixed, options=dense.options))
+    result = run_to_end(dense.solve(x, fixed))
     return time.perf_counter() - t0, bool(result.converged), result.message
 
 

@@ -28,7 +28,7 @@ import scipy.optimize
 from benchmarks.cases import Case, run_solve
 from isochor.core.lattice import PointBasis
 from isochor.core.solve.generators import run_to_end
-from isochor.core.solve.multilevel import Progress, SolveResult, solve
+from isochor.core.solve.multilevel import Progress, SolveResult
 from isochor.core.solve.solver import SolverOptions
 from isochor.core.springs import SpringNetwork
 from isochor.core.volume import VolumeOperator
@@ -144,9 +144,9 @@ def profile_solve(
     case: Case, upto: int | None = None, options: SolverOptions | None = None, top: int = 8
 ) -> SolveProfile:
     """Profile one multi-level solve of ``case`` on a set-up surface (levels ``0..upto``)."""
-    surface = case.surface(upto=upto)
+    problem = case.on(upto=upto)
     options = options or case.options
-    run_solve(surface, case.nodes, case.fixed, options)  # set the levels up
+    run_solve(problem, case.nodes, case.fixed, options)  # set the levels up
     closed: list[tuple[Progress | None, cProfile.Profile, float]] = []
     prof = cProfile.Profile()
     t_seg = 0.0
@@ -161,7 +161,7 @@ def profile_solve(
         t_seg = time.perf_counter()
         prof.enable()
 
-    gen = solve(surface, case.nodes, case.fixed, options=options)
+    gen = problem.solve(case.nodes, case.fixed, options=options)
     t0 = t_seg = time.perf_counter()
     prof.enable()
     try:
@@ -170,7 +170,7 @@ def profile_solve(
         prof.disable()
     t_end = time.perf_counter()
     closed.append((None, prof, t_end - t_seg))
-    plain = run_solve(surface, case.nodes, case.fixed, options).wall
+    plain = run_solve(problem, case.nodes, case.fixed, options).wall
 
     stats = []
     for _, p, _ in closed:

@@ -19,6 +19,8 @@ from benchmarks.cases import run_solve
 from benchmarks.timing import Timing, peak_rss_mb, time_call
 from isochor.core.lattice import Lattice
 from isochor.core.mesh import TriMesh
+from isochor.core.scenario.document import Scenario
+from isochor.core.scenario.problem import Model, Problem
 from isochor.core.solve.multilevel import EmbeddedSurface
 from isochor.core.solve.solver import SolverOptions
 from isochor.core.volume import VolumeOperator
@@ -225,11 +227,13 @@ def armadillo_child(path: str, repeats: int) -> dict:
     out["levels"] = [m.n_faces for m in levels]
     lattice, nodes, fixed = armadillo_bend(levels)
     options = SolverOptions()
+    scenario = Scenario({"mesh": str(path)}, lattice_nodes=lattice.shape)
     surface = EmbeddedSurface(lattice, levels)
-    cold = run_solve(surface, nodes, fixed, options)
+    problem = Problem(scenario, surface, nodes, fixed, Model(tuple(levels)))
+    cold = run_solve(problem, nodes, fixed, options)
     out["first_record_cold_s"] = cold.first_record
     out["solve_cold_s"] = cold.wall
-    runs = [run_solve(surface, nodes, fixed, options) for _ in range(max(1, repeats))]
+    runs = [run_solve(problem, nodes, fixed, options) for _ in range(max(1, repeats))]
     out["solve_s"] = [r.wall for r in runs]
     out["first_record_s"] = [r.first_record for r in runs]
     res = runs[0].result

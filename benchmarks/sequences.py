@@ -25,7 +25,6 @@ from isochor.core.scenario.document import Scenario
 from isochor.core.scenario.problem import build
 from isochor.core.scenario.sequence import solve_sequence
 from isochor.core.solve.generators import run_to_end
-from isochor.core.solve.multilevel import solve
 
 HEADING = "## Sequences: keyframed poses against cold solves"
 #: the target: the whole timeline costs at most this fraction of its frames solved fresh
@@ -89,7 +88,7 @@ def _cold(problem, seq) -> float:
     """Seconds to solve every frame's edit from the rest lattice."""
     t0 = time.perf_counter()
     for start, fixed, goal in _frame_edits(problem, seq, problem.surface.lattice):
-        run_to_end(solve(problem.surface, start, fixed, goal=goal, options=problem.options))
+        run_to_end(problem.solve(start, fixed, goal=goal))
     return time.perf_counter() - t0
 
 
@@ -98,7 +97,7 @@ def _fresh(problem, seq) -> float:
     t0 = time.perf_counter()
     for start, fixed, goal in _frame_edits(problem, seq, problem.surface.lattice):
         fresh = build(replace(problem.scenario, timeline=None))
-        run_to_end(solve(fresh.surface, start, fixed, goal=goal, options=fresh.options))
+        run_to_end(fresh.solve(start, fixed, goal=goal))
     return time.perf_counter() - t0
 
 

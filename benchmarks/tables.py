@@ -90,19 +90,20 @@ def table1_row(
     (no early stop). T1 and T2 runs are interleaved, so a busy spell hits both alike.
     """
     if variant == "estimate":
-        surface, options = case.surface(), case.options
+        problem, options = case.on(), case.options
     else:
-        surface = case.surface(upto=level)
+        problem = case.on(upto=level)
         options = dataclasses.replace(case.options, tol_nodes=0.0)
-    cold2 = run_solve(surface, case.nodes, case.fixed, options)
+    surface = problem.surface
+    cold2 = run_solve(problem, case.nodes, case.fixed, options)
     res = cold2.result
     terminal = res.terminal_level if res.terminal_level >= 0 else len(surface.levels) - 1
     term_stats = {s.level: s for s in res.levels}.get(terminal)
-    single = case.surface(only=terminal)
+    single = case.on(only=terminal)
     run_solve(single, case.nodes, case.fixed, case.options)  # set the level up
     runs1, runs2 = [], []
     for _ in range(max(1, repeats)):
-        runs2.append(run_solve(surface, case.nodes, case.fixed, options))
+        runs2.append(run_solve(problem, case.nodes, case.fixed, options))
         runs1.append(run_solve(single, case.nodes, case.fixed, case.options))
     r1 = runs1[0].result
     nan = float("nan")
@@ -174,10 +175,10 @@ def table2(row: Table1Row | Sequence[Run]) -> list[LevelRow]:
 
 def table2_paper_schedule(case: Case, repeats: int) -> list[LevelRow]:
     """Table 2 with the paper's schedule: every level from the coarsest (``start_level=0``)."""
-    surface = case.surface()
-    run_solve(surface, case.nodes, case.fixed, case.options, start_level=0)  # set up
+    problem = case.on()
+    run_solve(problem, case.nodes, case.fixed, case.options, start_level=0)  # set up
     runs = [
-        run_solve(surface, case.nodes, case.fixed, case.options, start_level=0)
+        run_solve(problem, case.nodes, case.fixed, case.options, start_level=0)
         for _ in range(max(1, repeats))
     ]
     return table2(runs)
@@ -208,10 +209,10 @@ def start_level_sweep(
     """T2 with ``solve(..., start_level=k)`` for the first ``max_start`` levels."""
     out = []
     for k in range(min(max_start, len(case.levels))):
-        surface = case.surface()
-        run_solve(surface, case.nodes, case.fixed, case.options, start_level=k)  # set up
+        problem = case.on()
+        run_solve(problem, case.nodes, case.fixed, case.options, start_level=k)  # set up
         runs = [
-            run_solve(surface, case.nodes, case.fixed, case.options, start_level=k)
+            run_solve(problem, case.nodes, case.fixed, case.options, start_level=k)
             for _ in range(max(1, repeats))
         ]
         res = runs[0].result
@@ -229,7 +230,7 @@ def first_record_latency(case: Case, rows: Sequence[Table1Row]) -> tuple[float, 
     The fresh one is a new solve; the set-up one is the median over the T2 runs of the
     case's estimate row in ``rows``.
     """
-    cold = run_solve(case.surface(), case.nodes, case.fixed, case.options).first_record
+    cold = run_solve(case.on(), case.nodes, case.fixed, case.options).first_record
     row = next(r for r in rows if r.case == case.key and r.variant.startswith("estimate"))
     warm = float(np.median([r.first_record for r in row.t2_runs]))
     return cold, warm

@@ -26,9 +26,9 @@ import numpy as np
 
 from .adapters import CallerMesh
 from .errors import IsochorError
-from .export import export_file
-from .goal.constraints import Goal
+from .export import Exported, export_bytes, export_file
 from .goal.handles import Handle
+from .goal.spec import GOAL_FIELDS, Goal
 from .io.atomic import atomic_write_bytes
 from .io.formats import is_scenario
 from .io.repair import clean_closed_surface
@@ -41,7 +41,6 @@ from .scenario.problem import Model, Problem, build, default_lattice_shape, scen
 from .scenario.sequence import Sequence as Solved
 from .scenario.sequence import solve_sequence
 from .solve.generators import run_to_end
-from .solve.multilevel import solve as solve_levels
 from .solve.pyramid import build_pyramid
 from .solve.records import Progress, SolveResult
 
@@ -82,19 +81,27 @@ class Session:
     padding : the lattice box around the model's bounding box, a fraction of its extent
     frame : ``(origin, axes)``: an explicit lattice box instead (rows of ``axes`` are its
         three edge vectors)
-    target : the volume to reach, relative to the model's (1 keeps it)
-    preserve : ``"total"`` (one volume, the default) or ``"per-body"`` (each closed body
-        keeps its own)
-    keep_centroid : also keep the solid's centre of mass where it was
-    anchor : ``"far-side"`` (the default: while too little is fixed to hold the lattice,
-        the face away from the moved nodes stays put) or ``"none"`` (the paper's behaviour)
-    fold_guard : penalise folding the model inside out (default True)
-    symmetry : ``"x"``, ``"y"`` or ``"z"``: edits and results are mirror images across that
-        mid-plane of the lattice; ``"none"`` (the default)
+    goal : what the solve holds, by the keywords of
+        :data:`~isochor.core.goal.spec.GOAL_FIELDS` (each field's ``keyword``):
+
+        - ``target``: the volume to reach, relative to the model's (1 keeps it)
+        - ``preserve``: ``"total"`` (one volume, the default) or ``"per-body"`` (each
+          closed body keeps its own)
+        - ``keep_centroid``: also keep the solid's centre of mass where it was
+        - ``anchor``: ``"far-side"`` (the default: while too little is fixed to hold the
+          lattice, the face away from the moved nodes stays put) or ``"none"`` (the
+          paper's behaviour)
+        - ``fold_guard``: penalise folding the model inside out (default True)
+        - ``symmetry``: ``"x"``, ``"y"`` or ``"z"``: edits and results are mirror images
+          across that mid-plane of the lattice; ``"none"`` (the default)
+
+    ``source`` may also be a :class:`~isochor.core.scenario.document.Scenario` (the command
+    line's: a file it read, with its options applied, or a built-in example).
 
     Handles (:meth:`add_handle`) are points of the model that the solve puts where they are
-    told to go. A scenario file's own settings are the defaults of a session on it. The settings are
-    attributes of the same names (``target`` for the ratio) and may change between solves.
+    told to go. A scenario's own settings are the defaults of a session on it. The goal's
+    settings are attributes of the same names (``target`` for the ratio) and may change
+    between solves; they are checked when a solve starts (:attr:`goal`).
 
     Examples
     --------
@@ -113,15 +120,16 @@ class Session:
         *,
         padding: float | None = None,
         frame: tuple[Sequence[float], Sequence[Sequence[float]]] | None = None,
-        target: float | None = None,
-        preserve: str | None = None,
-        keep_centroid: bool | None = None,
-        anchor: str | None = None,
-        fold_guard: bool | None = None,
-        symmetry: str | None = None,
+        **goal: Any,
     ) -> None:
+        by_keyword = {f.keyword: f for f in GOAL_FIELDS}
+        for name in goal:
+            if name not in by_keyword:
+                raise TypeError(f"Session() got an unexpected keyword argument {name!r}")
         self._mesh: CallerMesh | None = None
-        if isinstance(source, (str, Path)):
+        if isinstance(source, Scenario):
+            scenario, model = source, scenario_model(source)
+        elif isinstance(source, (str, Path)):
             scenario, model = _open(Path(source))
         else:
             self._mesh = CallerMesh(source)
@@ -131,27 +139,24 @@ class Session:
         changes: dict[str, Any] = {}
         if lattice is not None:  # another lattice: a scenario's moves and pins name old nodes
             changes.update(lattice_nodes=tuple(lattice), moves=(), pins=())
-        elif not isinstance(source, (str, Path)) or not is_scenario(Path(source)):
+        elif not isinstance(source, (str, Path, Scenario)) or not _names_scenario(source):
             changes["lattice_nodes"] = default_lattice_shape(model.levels[-1])
         if padding is not None:
             changes["padding"] = padding
         if frame is not None:
             changes["frame"] = (list(frame[0]), [list(a) for a in frame[1]])
-        if target is not None:
-            changes["target_volume_ratio"] = target
-        goal = {"preserve": preserve, "keep_centroid": keep_centroid, "anchor": anchor}
-        goal.update(fold_guard=fold_guard, symmetry=symmetry)
-        changes.update({k: v for k, v in goal.items() if v is not None})
-        scenario = scenario.checked(changes)
+        # each goal keyword checked as its scenario key is (the same one-line errors)
+        changes.update({by_keyword[k].key: v for k, v in goal.items() if v is not None})
+        if changes:
+            scenario = scenario.checked(changes)
         self.problem: Problem = build(scenario, model=model)
         self.nodes = self.problem.nodes.copy()
         #: (n, 3) bool: the fixed coordinates of every node
         self.fixed = self.problem.fixed.copy()
-        #: what the next solve holds; the attributes may be changed between solves
-        self.target = float(scenario.target_volume_ratio)
-        self.preserve, self.keep_centroid = scenario.preserve, scenario.keep_centroid
-        self.anchor, self.fold_guard = scenario.anchor, scenario.fold_guard
-        self.symmetry = scenario.symmetry
+        # what the next solve holds: one attribute per goal field, by its keyword
+        # (``target``, ``preserve``, ...); they may be changed between solves
+        for f in GOAL_FIELDS:
+            setattr(self, f.keyword, getattr(scenario.goal, f.name))
         #: the surface handles of the next solve (see :meth:`add_handle`)
         self.handles: list[Handle] = list(scenario.handles)
         #: keyed poses (see :meth:`key`) and how :meth:`frames` plays them
@@ -206,16 +211,9 @@ class Session:
 
     @property
     def goal(self) -> Goal:
-        """What the next solve holds (from ``target``, ``preserve``, ``keep_centroid``,
-        ``anchor``, ``fold_guard`` and ``symmetry``)."""
-        return Goal(
-            self.target,
-            self.preserve,
-            self.keep_centroid,
-            self.anchor,
-            self.fold_guard,
-            self.symmetry,
-        )
+        """What the next solve holds: the goal's attributes (``target``, ``preserve``,
+        ``keep_centroid``, ``anchor``, ``fold_guard``, ``symmetry``), checked."""
+        return Goal(**{f.name: getattr(self, f.keyword) for f in GOAL_FIELDS})
 
     def add_handle(self, at: Sequence[float], to: Sequence[float] | None = None) -> int:
         """Add a handle on the model's point ``at`` (rest coordinates) that the next solves
@@ -259,13 +257,8 @@ class Session:
         """Solve step by step: yields a :class:`~isochor.core.solve.records.Progress` record per
         inner step and level, returns the result; the session's nodes become the result's.
         Closing the generator stops the solve and keeps the nodes as they were."""
-        result = yield from solve_levels(
-            self.problem.surface,
-            self.nodes,
-            self.fixed,
-            goal=self.goal,
-            handles=self.handles,
-            options=self.problem.options,
+        result = yield from self.problem.solve(
+            self.nodes, self.fixed, goal=self.goal, handles=self.handles
         )
         self.nodes = np.array(result.nodes)
         self.result = result
@@ -278,9 +271,16 @@ class Session:
     @property
     def report(self) -> dict[str, Any]:
         """The last solve's report (the command line's ``--report``)."""
+        return self.report_for()
+
+    def report_for(
+        self, source: str = "isochor.Session", time_s: float | None = None
+    ) -> dict[str, Any]:
+        """The last solve's report, saying where the scenario came from (``source``, in
+        words) and how long the whole run took (``time_s``; the solve's own by default)."""
         if self.result is None:
             raise IsochorError("nothing solved yet: call solve() first")
-        return make_report(self.problem, self.result, "isochor.Session")
+        return make_report(self.problem, self.result, source, time_s)
 
     # -- results -----------------------------------------------------------------------------
     def deformed_vertices(self) -> np.ndarray:
@@ -299,13 +299,25 @@ class Session:
             return self._mesh.like(self.deformed_vertices())
         return TriMesh(self.deformed_vertices(), self.problem.surface.full.faces)
 
+    def export_bytes(
+        self, path: str | Path, *, morph_target: bool = False, nodes: np.ndarray | None = None
+    ) -> Exported:
+        """The file :meth:`export` would write to ``path``, not written: for a caller that
+        writes several outputs as one set (the command line's ``--out`` with its report).
+        ``nodes``: other lattice nodes to deform by (a frame of a sequence); the session's
+        by default."""
+        nodes = self.nodes if nodes is None else nodes
+        if self._mesh is not None:  # the caller's own mesh, by its own kind
+            vertices = self.lattice.deform(self._mesh.vertices, nodes)
+            return Exported(self._mesh.file_bytes(vertices, Path(path)))
+        return export_bytes(self.problem, nodes, path, morph_target=morph_target)
+
     def export(self, path: str | Path, *, morph_target: bool = False) -> list[str]:
         """Write the deformed model through the one export path (the same as the command
         line's ``--out`` and the window's Export): in the model file's own format it keeps
         everything but the positions. Never over the model file. Returns the notes."""
         if self._mesh is not None:  # the caller's own mesh, written by its own kind
-            data = self._mesh.file_bytes(self.deformed_vertices(), Path(path))
-            atomic_write_bytes(path, data)
+            atomic_write_bytes(path, self.export_bytes(path).data)
             return []
         return export_file(self.problem, self.nodes, path, morph_target=morph_target)
 
@@ -326,18 +338,12 @@ class Session:
             (lat.ijk(r), "".join(a for a, f in zip("xyz", self.fixed[r]) if f))
             for r in np.flatnonzero(partial)
         )
-        goal = self.goal
         return self.problem.scenario.with_(
             moves=moves,
             pins=pins,
             axis_pins=axis_pins,
-            target_volume_ratio=goal.target_ratio,
-            preserve=goal.preserve,
-            keep_centroid=goal.keep_centroid,
-            anchor=goal.anchor,
-            fold_guard=goal.fold_guard,
+            goal=self.goal,
             handles=tuple(self.handles),
-            symmetry=goal.symmetry,
             timeline=self.timeline() if self.poses else None,
         )
 
@@ -349,6 +355,11 @@ class Session:
                 "a mesh from memory has no file a scenario can name; export it first"
             )
         self.scenario().write(path)
+
+
+def _names_scenario(source: str | Path | Scenario) -> bool:
+    """Whether ``source`` is a scenario (its lattice is the session's) or a model file."""
+    return isinstance(source, Scenario) or is_scenario(Path(source))
 
 
 def _open(path: Path) -> tuple[Scenario, Model]:
@@ -372,7 +383,6 @@ def deform(
     moves: Mapping[Node, Sequence[float]] | Iterable[Mapping[str, Any]] = (),
     pins: Iterable[Node | Mapping[str, Any]] = (),
     handles: Iterable[Handle | Mapping[str, Any]] = (),
-    target: float = 1.0,
     **options: Any,
 ) -> Deformed:
     """Deform a mesh in memory, keeping its volume (or reaching ``target`` times it).
@@ -388,9 +398,9 @@ def deform(
         kept on some axes only
     handles : ``{"at": [x, y, z], "to": [x, y, z]}`` (or
         :class:`~isochor.core.goal.handles.Handle`): the mesh's point ``at`` must land at ``to``
-    target : the volume to reach relative to the mesh's
-    options : ``padding``, ``frame``, ``preserve``, ``keep_centroid``, ``anchor``,
-        ``fold_guard``, ``symmetry``: see :class:`Session`
+    options : ``padding``, ``frame`` and the goal's keywords (``target``: the volume to
+        reach relative to the mesh's, 1 by default; ``preserve``, ``keep_centroid``,
+        ``anchor``, ``fold_guard``, ``symmetry``): see :class:`Session`
 
     Returns
     -------
@@ -398,7 +408,7 @@ def deform(
         ``.mesh`` of the input's type with every input vertex moved, ``.report``,
         ``.result``, ``.converged``.
     """
-    session = Session(mesh, lattice, target=target, **options)
+    session = Session(mesh, lattice, **options)
     items = moves.items() if isinstance(moves, Mapping) else moves
     for item in items:
         if isinstance(item, Mapping):

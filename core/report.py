@@ -39,12 +39,7 @@ def make_report(
         "volume_final": result.volume_final,
         "relative_volume_error": result.rel_volume_error,
         "target_error": result.target_error,
-        "target_volume_ratio": sc.target_volume_ratio,
-        "preserve": sc.preserve,
-        "keep_centroid": sc.keep_centroid,
-        "anchor": sc.anchor,
-        "fold_guard": sc.fold_guard,
-        "symmetry": sc.symmetry,
+        **sc.goal.to_json(),  # each field under its scenario key
         "asymmetry": result.asymmetry,
         "handles": [
             {"at": list(h.at), "to": list(h.to), "reached": list(h.reached), "miss": h.miss}

@@ -122,8 +122,8 @@ def test_main_sets_one_blas_thread_before_numpy_is_imported():
 
 # -- cases and Tables 1-2 ----------------------------------------------------------------------
 def test_run_solve_keeps_every_record(small_case):
-    surface = small_case.surface()
-    run = cases.run_solve(surface, small_case.nodes, small_case.fixed, small_case.options)
+    problem = small_case.on()
+    run = cases.run_solve(problem, small_case.nodes, small_case.fixed, small_case.options)
     r = len(run.times)
     assert r > 2 and run.nodes.shape == (r, len(small_case.nodes), 3) and run.levels.shape == (r,)
     assert np.all(np.diff(run.times) >= 0) and 0 < run.first_record <= run.wall

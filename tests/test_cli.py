@@ -316,13 +316,13 @@ def test_unwritable_output_is_one_line(tmp_path, capsys, monkeypatch):
 
 
 def test_not_converged_writes_outputs_and_exits_3(tmp_path, capsys, monkeypatch):
-    real = cli.run_solve
+    real = isochor.core.solve.multilevel.solve
 
-    def unlucky(problem, out=None):
-        result = real(problem, out)
+    def unlucky(*args, **kwargs):
+        result = yield from real(*args, **kwargs)
         return dataclasses.replace(result, converged=False, message="ran out of steps")
 
-    monkeypatch.setattr(cli, "run_solve", unlucky)
+    monkeypatch.setattr(isochor.core.solve.multilevel, "solve", unlucky)
     out, rep = tmp_path / "o.obj", tmp_path / "r.json"
     status = main(
         ["solve", "--example", "torus-compression", "--out", str(out), "--report", str(rep)]
@@ -358,8 +358,8 @@ def test_ctrl_c_stops_the_solve_and_writes_nothing(tmp_path, capsys, monkeypatch
 
 
 def test_ctrl_c_between_steps_closes_the_generator(monkeypatch):
+    from isochor.core.api import Session
     from isochor.core.scenario.examples import example_scenario
-    from isochor.core.scenario.problem import build
 
     real = isochor.core.solve.multilevel.solve
     state = {"closed": False, "records": 0}
@@ -385,7 +385,7 @@ def test_ctrl_c_between_steps_closes_the_generator(monkeypatch):
 
     monkeypatch.setattr(isochor.core.solve.multilevel, "solve", watched)
     try:
-        cli.run_solve(build(example_scenario("torus-compression")), Keyboard())
+        cli.run_solve(Session(example_scenario("torus-compression")), Keyboard())
     except KeyboardInterrupt:
         # checked while the traceback still holds run_solve's frame (and its generator):
         # closed explicitly, not by the garbage collector later

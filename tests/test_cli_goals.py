@@ -34,7 +34,7 @@ import numpy as np
 import pytest
 
 from isochor.core.defaults import TOL_VOLUME
-from isochor.core.goal.constraints import RATIO_RANGE
+from isochor.core.goal.spec import RATIO_RANGE
 from isochor.core.scenario.document import Scenario
 from isochor.core.scenario.edits import MAX_MOVE
 from isochor.core.scenario.problem import build

@@ -7,7 +7,8 @@ import trimesh
 
 from isochor.core.errors import IsochorError
 from isochor.core.goal.anchor import held_face, rigid_freedom
-from isochor.core.goal.constraints import CENTROID_SCALE, Bodies, Constraints, Goal, Level
+from isochor.core.goal.constraints import CENTROID_SCALE, Bodies, Constraints, Level
+from isochor.core.goal.spec import Goal
 from isochor.core.lattice import Lattice
 from isochor.core.mesh import TriMesh
 from isochor.core.volume import MomentOperator

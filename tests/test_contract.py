@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import random
 import re
 import resource
 import select
@@ -753,6 +754,78 @@ def test_signal_sweep_on_an_example(tmp_path, sig, delay):
         check(run, before, after, ["o.ply", "r.json"], folder=tmp_path)
     else:
         _interrupted(run, sig, before, after)
+
+
+#: the seeded moments of :func:`test_a_signal_is_never_lost` (a failure names its run)
+LOST_SIGNAL_SEED = 25
+LOST_SIGNAL_RUNS = 24
+#: after the table's header a signal comes within this fraction of the reference run's time
+#: from the header to its summary: the solve, the check on the full mesh and the export
+#: still lie ahead, so the outputs cannot have been written yet
+LOST_SIGNAL_SOLVE_FRACTION = 0.25
+
+
+def _lost_signal_case(folder: Path) -> list[str]:
+    """A scenario on a small OBJ model written into ``folder`` (loading it imports trimesh
+    and reads the file), a 4x4x4 lattice stretched at two corners; its ``solve`` arguments."""
+    (folder / "m.obj").write_bytes(mesh_bytes(icosphere(5), ".obj"))
+    doc = torus_doc(
+        model={"path": "m.obj"},
+        lattice={"nodes": [4, 4, 4], "padding": 0.05},
+        moves=[
+            {"node": [3, 3, 3], "by": [0.8, 0.8, 0.0]},
+            {"node": [0, 0, 0], "by": [-0.8, 0.0, 0.0]},
+        ],
+    )
+    write_json(folder / "s.json", doc)
+    return ["solve", "s.json", "--out", "o.ply", "--report", "r.json"]
+
+
+def test_a_signal_is_never_lost(tmp_path):
+    """Signals at seeded random moments of the program's start-up, the model's loading and
+    the solve: every run ends interrupted (exit 128+signal, one line), with no output and
+    no temporary file.
+
+    A signal's exception can be lost where Python or a library swallows exceptions (an
+    importlib callback, a library's ``try: import ... except BaseException``); the run
+    then went on and wrote its outputs with exit 0 (issue 25: once in
+    ``test_signal_during_a_big_solve[SIGHUP]``, and in about one run in eight here, while
+    trimesh was imported). A reference run first measures the phases: the moments come
+    from the handlers being installed until the table's header, or shortly after it."""
+    ref = tmp_path / "reference"
+    ref.mkdir()
+    args = _lost_signal_case(ref)
+    t0 = time.monotonic()
+    proc = _spawn(args, ref)
+    ready = _catching(proc, 60)
+    head = _read_until(proc, rb"level", 60)
+    header = time.monotonic()
+    run = _finish(proc, args, t0, head)
+    summary = t0 + run.elapsed
+    assert run.returncode == 0 and b"level" in head, run
+    loading, solving = header - ready, summary - header
+    rng = random.Random(LOST_SIGNAL_SEED)
+    for n in range(LOST_SIGNAL_RUNS):
+        folder = tmp_path / f"run{n}"
+        folder.mkdir()
+        args = _lost_signal_case(folder)
+        sig = rng.choice([signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+        before_header = rng.random() < 0.5
+        delay = rng.uniform(0.0, loading if before_header else solving * LOST_SIGNAL_SOLVE_FRACTION)
+        before = snapshot(folder)
+        t0 = time.monotonic()
+        proc = _spawn(args, folder)
+        ready = _catching(proc, 60)
+        if before_header:  # start-up and loading; at the header at the latest
+            head = _read_until(proc, rb"level", max(0.0, ready + delay - time.monotonic()))
+        else:  # solving
+            head = _read_until(proc, rb"level", 60)
+            time.sleep(delay)
+        proc.send_signal(sig)
+        run = _finish(proc, args, t0, head)
+        when = f"run {n}: {sig.name} {delay:.3f} s {'before' if before_header else 'after'}"
+        assert run.returncode == SIGNAL_EXIT[sig], f"{when} the header: {run}"
+        _interrupted(run, sig, before, snapshot(folder))
 
 
 # == bad inputs ============================================================================

@@ -892,7 +892,7 @@ def test_scenario_of_the_current_state(doc):
     free = np.flatnonzero(~doc.problem.fixed.any(axis=1))  # the example's free nodes
     assert sc.pins == (lat.ijk(int(free[1])),)  # not node 0: it is moved
     assert st.pinned[0]
-    assert sc.target_volume_ratio == pytest.approx(0.95)
+    assert sc.goal.target_ratio == pytest.approx(0.95)
     assert sc.model == {"builtin": "torus"}
     assert sc.lattice_nodes == (3, 3, 3)
     assert sc.tol_volume == doc.problem.scenario.tol_volume
@@ -906,7 +906,7 @@ def test_save_and_read_round_trip(doc, tmp_path):
     sc = Scenario.read(path)
     mine = doc.scenario()
     assert sc.moves == mine.moves and sc.pins == mine.pins
-    assert sc.target_volume_ratio == mine.target_volume_ratio
+    assert sc.goal.target_ratio == mine.goal.target_ratio
     assert sc.lattice_nodes == mine.lattice_nodes and sc.padding == mine.padding
     # Opened again, it is the same edit.
     again = Document.open(path)

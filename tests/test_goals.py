@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from isochor.core.errors import IsochorError
-from isochor.core.goal.constraints import Goal
+from isochor.core.goal.spec import Goal
 from isochor.core.mesh import TriMesh
 from isochor.core.scenario.document import Move, Scenario
 from isochor.core.scenario.paper_models import bend_scenario, cow_bend_scenario
@@ -25,7 +25,7 @@ TOL = 5e-4
 
 def _solve(problem, nodes=None, fixed=None, **goal):
     sc = problem.scenario
-    goal = Goal(**{"target_ratio": sc.target_volume_ratio, **goal})
+    goal = Goal(**{"target_ratio": sc.goal.target_ratio, **goal})
     return run_to_end(
         solve(
             problem.surface,

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from isochor.core.errors import IsochorError
-from isochor.core.goal.constraints import Goal
 from isochor.core.goal.handles import HANDLE_MET, Handle, HandleSystem, handle_rows, weights
+from isochor.core.goal.spec import Goal
 from isochor.core.goal.symmetry import Mirror
 from isochor.core.lattice import Lattice
 from isochor.core.scenario.document import Scenario
@@ -231,11 +231,11 @@ def test_more_handles_than_a_small_lattice_can_hold_end_without_a_hang():
 # -- the scenario and the Python API ------------------------------------------------------
 def test_a_scenario_keeps_its_handles_and_symmetry_as_version_3(tmp_path):
     h = Handle((0.1, 0.2, 0.3), (0.1, 0.5, 0.3))
-    sc = Scenario({"builtin": "sphere"}, handles=(h,), symmetry="z")
+    sc = Scenario({"builtin": "sphere"}, handles=(h,), goal=Goal(symmetry="z"))
     assert sc.version == 3 and sc.goal.symmetry == "z"
     sc.write(tmp_path / "s.json")
     again = Scenario.read(tmp_path / "s.json")
-    assert again.handles == (h,) and again.symmetry == "z"
+    assert again.handles == (h,) and again.goal.symmetry == "z"
     assert Scenario({"builtin": "sphere"}).to_dict()["version"] == 1
     with pytest.raises(IsochorError, match="handle"):
         Handle.of({"at": [0, 0, 0]})

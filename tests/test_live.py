@@ -6,8 +6,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from isochor.core.goal.constraints import Goal
 from isochor.core.goal.folds import FoldGuard
+from isochor.core.goal.spec import Goal
 from isochor.core.goal.symmetry import Mirror
 from isochor.core.lattice import Lattice
 from isochor.core.scenario.examples import example_scenario

@@ -7,6 +7,8 @@ import errno
 import os
 import signal
 import stat
+import sys
+import weakref
 
 import pytest
 
@@ -191,6 +193,57 @@ def test_a_signal_while_committing_lets_the_outputs_complete(armed, tmp_path):
 
     write_outputs([(outs[0], b"mesh"), (outs[1], b"report")], on_commit=commit)
     assert listing(tmp_path) == ["a.ply", "b.json"]
+
+
+def test_a_signal_whose_exception_was_lost_is_raised_before_anything_is_written(armed, tmp_path):
+    outs = check_outputs([(tmp_path / "a.ply", "--out"), (tmp_path / "b.json", "--report")])
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)
+        signal.pause() if hasattr(signal, "pause") else None
+    except BaseException:  # what a library's `try: import ... except BaseException` does
+        pass
+    assert not interrupts.state.armed  # the handler disarmed itself: the signal is recorded
+    with pytest.raises(interrupts.Interrupted) as err:
+        write_outputs([(outs[0], b"mesh"), (outs[1], b"report")], on_commit=interrupts.commit)
+    assert err.value.name == "SIGTERM" and listing(tmp_path) == []
+
+
+def test_after_the_commit_a_signal_is_only_noted(armed, tmp_path):
+    outs = check_outputs([(tmp_path / "a.ply", "--out")])
+
+    def commit():
+        interrupts.commit()
+        os.kill(os.getpid(), signal.SIGTERM)  # the renames go on
+
+    write_outputs([(outs[0], b"mesh")], on_commit=commit)
+    assert listing(tmp_path) == ["a.ply"] and interrupts.state.pending == signal.SIGTERM
+    interrupts.commit()  # once committed, the run completes: no second check
+
+
+def test_an_interrupt_python_ignores_is_not_printed(monkeypatch):
+    seen = []
+    monkeypatch.setattr(sys, "unraisablehook", seen.append)
+    interrupts.install()
+
+    class Thing:
+        pass
+
+    def interrupt(_):
+        raise interrupts.Interrupted(signal.SIGTERM)
+
+    def fail(_):
+        raise ValueError("not a signal")
+
+    try:
+        for callback in (interrupt, fail):  # a weakref callback's exception is ignored
+            thing = Thing()
+            ref = weakref.ref(thing, callback)
+            del thing
+    finally:
+        interrupts.release()
+    assert ref() is None
+    assert [type(u.exc_value) for u in seen] == [ValueError]  # only the interrupt is dropped
+    assert sys.unraisablehook == seen.append  # given back
 
 
 def test_a_signal_before_arming_is_raised_on_arming():

@@ -75,7 +75,7 @@ def solve_scenario(scenario: Scenario):
             problem.surface,
             problem.nodes,
             problem.fixed,
-            target_ratio=scenario.target_volume_ratio,
+            target_ratio=scenario.goal.target_ratio,
             options=problem.options,
         )
     )

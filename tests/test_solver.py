@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from isochor.core.errors import IsochorError
-from isochor.core.goal.constraints import Goal
+from isochor.core.goal.spec import Goal
 from isochor.core.lattice import Lattice
 from isochor.core.mesh import TriMesh
 from isochor.core.scenario.examples import example_scenario

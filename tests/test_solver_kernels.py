@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from isochor.core import kernels
+from isochor.core.goal.spec import Goal
 from isochor.core.kernels import step as stepkernels
 from isochor.core.kernels.pairs import Pairs
 from isochor.core.lattice import Lattice
@@ -120,7 +121,7 @@ def test_lbfgs_with_a_broken_kernel_falls_back_and_converges(compiled, monkeypat
 def test_a_solve_keeps_the_path_it_started_on(compiled, first):
     """The kernels arriving (or leaving) in the middle of a solve do not change where it
     ends: the two paths round differently, and the same command must give the same nodes."""
-    scenario = Scenario({"builtin": "torus", "n_levels": 3}, target_volume_ratio=10)
+    scenario = Scenario({"builtin": "torus", "n_levels": 3}, goal=Goal(target_ratio=10))
     problem = build(scenario)
 
     def run(switch: bool) -> np.ndarray:

@@ -4,7 +4,7 @@ mesh, so the full mesh is evaluated once (for the result), never on the way in."
 import numpy as np
 import pytest
 
-from isochor.core.goal.constraints import Goal
+from isochor.core.goal.spec import Goal
 from isochor.core.scenario.examples import example_scenario
 from isochor.core.scenario.problem import build
 from isochor.core.solve import multilevel

@@ -6,9 +6,19 @@ Until :func:`arm` is called (the first thing ``main`` does inside its error hand
 signal is only remembered; ``arm`` then raises it where it is caught. After that the first
 signal raises :class:`Interrupted` (a ``KeyboardInterrupt``, so everything that stops a
 solve on Ctrl-C stops it on SIGTERM too); later ones are only noted, so the way out is
-never interrupted. :func:`hold` ends the raising for good when the outputs start to be
+never interrupted. :func:`commit` ends the raising for good when the outputs start to be
 renamed into place: from then on the run completes, and its exit status tells the truth
 about the files.
+
+**A signal is never lost.** The handler's exception can be: raised while Python runs a
+callback whose exceptions it ignores (a ``__del__``, a weakref callback, an import hook)
+or inside code that catches everything (a library's optional import), it is dropped, and
+the handler has disarmed itself. So the handler *records* every signal first
+(:attr:`State.raised`, :attr:`State.pending`), and :func:`commit`, the last step before
+anything is written or renamed, raises a recorded one again: the run then ends with
+128 + the signal, one line and nothing written, however the first exception was lost. An
+exception Python ignores is not printed either (:func:`install` sets
+``sys.unraisablehook``), so standard error keeps its one line.
 
 A signal the parent process ignores (``nohup``, a background job) stays ignored.
 """
@@ -16,6 +26,7 @@ A signal the parent process ignores (``nohup``, a background job) stays ignored.
 from __future__ import annotations
 
 import signal
+import sys
 from contextlib import suppress
 
 SIGNALS = tuple(
@@ -54,6 +65,10 @@ class State:
     #: failed"), and the run must still end as interrupted
     raised: int | None = None
     previous: dict[int, object] = {}
+    #: :func:`commit` has run: from then on the run completes
+    committed = False
+    #: ``sys.unraisablehook`` before :func:`install`
+    previous_hook = None
 
 
 state = State()
@@ -68,8 +83,19 @@ def _handler(signum: int, frame) -> None:
         state.pending = signum
 
 
+def _unraisable(unraisable) -> None:
+    """``sys.unraisablehook``: an interrupt raised where Python ignores exceptions is not
+    printed (it is recorded, and :func:`commit` answers it); anything else goes to the
+    hook there was."""
+    if isinstance(unraisable.exc_value, Interrupted):
+        return
+    (state.previous_hook or sys.__unraisablehook__)(unraisable)
+
+
 def install() -> None:
     """Catch SIGINT, SIGTERM and SIGHUP (only noted until :func:`arm`)."""
+    if sys.unraisablehook is not _unraisable:
+        state.previous_hook, sys.unraisablehook = sys.unraisablehook, _unraisable
     for sig in SIGNALS:
         try:
             current = signal.getsignal(sig)
@@ -83,6 +109,7 @@ def install() -> None:
 
 def arm() -> None:
     """From now on a signal raises :class:`Interrupted`; one that came before is raised now."""
+    state.raised, state.committed = None, False
     state.armed = True
     signum, state.pending = state.pending, None
     if signum is not None:
@@ -94,6 +121,20 @@ def arm() -> None:
 def hold() -> None:
     """From now on signals are only noted: the run goes on to its end."""
     state.armed = False
+
+
+def commit() -> None:
+    """The last step before anything is written or renamed: a signal received since
+    :func:`arm` is raised now (again, if its first exception was lost); from then on
+    signals are only noted and the run goes on to its end. Only the first call checks."""
+    if state.committed:
+        return
+    state.armed = False  # a plain store first: a signal from here on is only noted
+    signum = state.raised if state.raised is not None else state.pending
+    if signum is not None:
+        state.raised, state.pending = signum, None
+        raise Interrupted(signum)
+    state.committed = True
 
 
 def ignore() -> None:
@@ -111,5 +152,7 @@ def release() -> None:
         with suppress(ValueError, OSError, TypeError):
             signal.signal(sig, previous)
     state.previous.clear()
+    if sys.unraisablehook is _unraisable:
+        sys.unraisablehook, state.previous_hook = state.previous_hook, None
     state.armed = False
-    state.pending = None
+    state.pending = state.raised = None

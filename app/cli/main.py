@@ -50,6 +50,7 @@ from typing import TYPE_CHECKING, Any, NoReturn, TextIO  # noqa: E402
 
 from ... import __version__  # noqa: E402
 from ...core.errors import IsochorError  # noqa: E402
+from ...core.goal.spec import GOAL_FIELDS, Goal  # noqa: E402  (light: no numpy)
 from .console import (  # noqa: E402
     EXIT_ERROR,
     EXIT_INTERNAL,
@@ -67,8 +68,8 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 if TYPE_CHECKING:
-    from ...core.scenario.problem import Problem
-    from ...core.solve.multilevel import SolveResult
+    from ...core.api import Session
+    from ...core.solve.records import SolveResult
 
 #: set (to anything but "" or "0") for Python's warnings and the traceback of an internal error
 DEBUG_VARIABLE = "ISOCHOR_DEBUG"
@@ -89,7 +90,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not debug:  # numpy's overflow warnings and the like: never on the user's screen
                 warnings.simplefilter("ignore")
             args = _parser().parse_args(list(sys.argv[1:] if argv is None else argv))
-            return args.run(args)
+            status = args.run(args)
+            interrupts.commit()  # a run that wrote nothing: a signal it lost is answered
+            return status
     except BaseException as exc:
         # a plain store first (no call, so no signal handler can run before it): from here
         # on a signal is only noted, and the way out says one thing
@@ -112,15 +115,15 @@ def entry() -> NoReturn:
 
 def _status(exc: BaseException, debug: bool) -> int:
     """The one line and the exit status for what ended the run."""
-    if isinstance(exc, IsochorError):
-        return _fail(exc)
     if isinstance(exc, interrupts.Interrupted):
         return _fail(f"interrupted ({exc.name}); nothing was written", exc.status)
-    if isinstance(exc, KeyboardInterrupt):
-        return _fail("interrupted (SIGINT); nothing was written", 128 + 2)
     if interrupts.state.raised is not None:  # a signal's exception that came out as another
         signal = interrupts.Interrupted(interrupts.state.raised)
         return _fail(f"interrupted ({signal.name}); nothing was written", signal.status)
+    if isinstance(exc, IsochorError):
+        return _fail(exc)
+    if isinstance(exc, KeyboardInterrupt):
+        return _fail("interrupted (SIGINT); nothing was written", 128 + 2)
     if isinstance(exc, SystemExit):  # --help, --version, a usage error: argparse has spoken
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     if isinstance(exc, MemoryError):
@@ -208,37 +211,14 @@ def _parser() -> argparse.ArgumentParser:
         help="solve the scenario's poses: one file per frame (frame_####.obj) or one animated .glb",
     )
     goal = solve.add_argument_group("what the solve holds (each overrides the scenario's)")
-    goal.add_argument(
-        "--target", type=float, metavar="RATIO", help="the volume to reach, / the model's"
-    )
-    goal.add_argument(
-        "--preserve",
-        choices=("total", "per-body"),
-        help="one total volume, or each closed body's own",
-    )
-    goal.add_argument(
-        "--keep-centroid",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="keep the solid's centre of mass where it was",
-    )
-    goal.add_argument(
-        "--anchor",
-        choices=("far-side", "none"),
-        help="far-side: while too little is fixed, hold the lattice face away from the "
-        "moved nodes; none: let the lattice drift (the paper)",
-    )
-    goal.add_argument(
-        "--symmetry",
-        choices=("none", "x", "y", "z"),
-        help="keep the edit and the result mirror images across that mid-plane of the lattice",
-    )
-    goal.add_argument(
-        "--fold-guard",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="penalise folding the model inside out (on by default)",
-    )
+    for f in GOAL_FIELDS:  # one option per field of the goal, as it declares it
+        if f.kind is bool:
+            how: dict[str, Any] = {"action": argparse.BooleanOptionalAction, "default": None}
+        elif f.choices:
+            how = {"choices": f.choices}
+        else:
+            how = {"type": f.kind, "metavar": f.metavar}
+        goal.add_argument(f.option, dest=f.name, help=f.help, **how)
     solve.set_defaults(run=_solve)
 
     examples = sub.add_parser("examples", help="list the built-in examples")
@@ -270,12 +250,12 @@ def _examples(args: argparse.Namespace) -> int:
 
 # -- solve --------------------------------------------------------------------------------
 def _solve(args: argparse.Namespace) -> int:
-    from ...core.export import export_bytes
+    """``isochor solve``: a :class:`isochor.core.api.Session` on the scenario (load, solve,
+    report, export), its outputs checked before any work and written as one set."""
+    from ...core.api import Session
     from ...core.io.atomic import check_outputs, write_outputs
     from ...core.io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
-    from ...core.report import make_report
     from ...core.scenario.document import Scenario
-    from ...core.scenario.problem import build
 
     if args.example is not None:
         from ...core.scenario.examples import example_scenario
@@ -285,7 +265,7 @@ def _solve(args: argparse.Namespace) -> int:
     else:
         scenario, source = Scenario.read(args.scenario), str(args.scenario)
         inputs = [(args.scenario, "the scenario")]
-    scenario = _with_goal(scenario, args)
+    scenario = scenario.with_(goal=_goal(scenario.goal, args))
     if "path" in scenario.model:
         inputs.append((scenario.model_path(), "the model"))
     if args.sequence is not None:
@@ -305,17 +285,16 @@ def _solve(args: argparse.Namespace) -> int:
     ):
         raise IsochorError("--morph-target needs a glTF model and --out ending in .glb or .gltf")
     t0 = time.perf_counter()
-    problem = build(scenario)
-    for w in problem.warnings:
+    session = Session(scenario)
+    for w in session.warnings:
         print(f"isochor: warning: {w}", file=sys.stderr)
     console = PipeSafe(sys.stdout)
-    out = None if args.quiet else console
-    result = run_solve(problem, out)
+    result = run_solve(session, None if args.quiet else console)
     total = time.perf_counter() - t0
     exported = None
     if args.out is not None:
-        exported = export_bytes(problem, result.nodes, args.out, morph_target=args.morph_target)
-    report = make_report(problem, result, source, total)
+        exported = session.export_bytes(args.out, morph_target=args.morph_target)
+    report = session.report_for(source, total)
     report["export_notes"] = list(exported.notes) if exported is not None else []
     # everything is computed before anything is written: an error or a signal up to here
     # leaves no file; then the outputs are written as a set, all or none
@@ -325,9 +304,10 @@ def _solve(args: argparse.Namespace) -> int:
             files.append((o, exported.data))
         else:
             files.append((o, (json.dumps(report, indent=2, allow_nan=False) + "\n").encode()))
-    # a signal stops the run until the first output is renamed into place; from then on
-    # the run completes (the files are in place, so exit 0 or 3 is the truth)
-    write_outputs(files, on_commit=interrupts.hold)
+    # a signal received until the first output is renamed into place stops the run, even
+    # one whose exception was lost (interrupts.commit); from then on the run completes (the
+    # files are in place, so exit 0 or 3 is the truth)
+    write_outputs(files, on_commit=interrupts.commit)
     for note in exported.notes if exported is not None else ():
         print(f"isochor: note: {note}", file=sys.stderr)
     _summary(result, args, console)
@@ -341,40 +321,30 @@ def _solve(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _with_goal(scenario, args: argparse.Namespace):
-    """The scenario with the goal options of the command line."""
-    from ...core.goal.constraints import check_ratio
-
-    changes: dict[str, Any] = {}
-    if args.target is not None:
-        changes["target_volume_ratio"] = check_ratio(args.target, "--target")
-    for key in ("preserve", "keep_centroid", "anchor", "fold_guard", "symmetry"):
-        if getattr(args, key) is not None:
-            changes[key] = getattr(args, key)
-    return scenario.with_(**changes) if changes else scenario
+def _goal(goal: Goal, args: argparse.Namespace) -> Goal:
+    """``goal`` with the command line's goal options, each checked and named by its option
+    (``--target 30``: the range, and ``--target``)."""
+    changes = {
+        f.name: f.check(getattr(args, f.name), f.option)
+        for f in GOAL_FIELDS
+        if getattr(args, f.name) is not None
+    }
+    return goal.with_(**changes) if changes else goal
 
 
-def run_solve(problem: Problem, out: TextIO | None = None) -> SolveResult:
-    """Drive :func:`core.solve.multilevel.solve` to its end, printing one row per level.
+def run_solve(session: Session, out: TextIO | None = None) -> SolveResult:
+    """Drive the session's solve (:meth:`isochor.core.api.Session.steps`) to its end,
+    printing one row per level.
 
     Ctrl-C closes the generator (the solve stops at once) and is raised again.
 
     Returns
     -------
-    core.solve.multilevel.SolveResult
+    isochor.core.solve.records.SolveResult
     """
     from ...core.solve.generators import run_to_end
-    from ...core.solve.multilevel import solve
 
-    sc = problem.scenario
-    run = solve(
-        problem.surface,
-        problem.nodes,
-        problem.fixed,
-        goal=sc.goal,
-        handles=sc.handles,
-        options=problem.options,
-    )
+    run = session.steps()
     if out is not None:
         print(
             f"{'level':>5} {'triangles':>10} {'max dX %':>9} {'steps':>6} {'ms':>8} {'|dV|/V0':>9}",

@@ -11,13 +11,12 @@ import sys
 import time
 from pathlib import Path
 
+from ...core.api import Session
 from ...core.errors import IsochorError
-from ...core.export import export_bytes
 from ...core.io.atomic import check_outputs, write_outputs
 from ...core.io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
 from ...core.io.gltfanim import animated_glb
 from ...core.report import sequence_report
-from ...core.scenario.problem import build
 from ...core.scenario.sequence import frame_path, solve_sequence
 from ...core.solve.generators import run_to_end
 from . import interrupts
@@ -48,8 +47,9 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
     report = [(args.report, "--report")] if args.report is not None else []
     outputs = check_outputs(targets + report, inputs)
     t0 = time.perf_counter()
-    problem = build(scenario)
-    for w in problem.warnings:
+    session = Session(scenario)  # loaded as for one solve; its problem holds the poses
+    problem = session.problem
+    for w in session.warnings:
         print(f"isochor: warning: {w}", file=sys.stderr)
     console = PipeSafe(sys.stdout)
     if not args.quiet:
@@ -71,7 +71,7 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
         notes: list[str] = []
     else:
         exported = [
-            export_bytes(problem, f.result.nodes, p) for f, (p, _) in zip(seq.frames, targets)
+            session.export_bytes(p, nodes=f.result.nodes) for f, (p, _) in zip(seq.frames, targets)
         ]
         data = [e.data for e in exported]
         notes = list(dict.fromkeys(n for e in exported for n in e.notes))
@@ -80,7 +80,7 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
     files = list(zip(outputs, data))
     if report:
         files.append((outputs[-1], (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode()))
-    write_outputs(files, on_commit=interrupts.hold)
+    write_outputs(files, on_commit=interrupts.commit)  # a signal received so far stops it
     for note in notes:
         print(f"isochor: note: {note}", file=sys.stderr)
     if not args.quiet:

@@ -315,14 +315,7 @@ class EditorSession(QObject):
         ``near``: the nodes are a live drag's last frame."""
         self._deferred = False
         gen = self.worker.start(
-            st.surface,
-            nodes,
-            fixed,
-            goal=st.goal,
-            options=st.problem.options,
-            handles=handles,
-            live=live,
-            near=near,
+            st.problem, nodes, fixed, goal=st.goal, handles=handles, live=live, near=near
         )
         self._accept_gen = gen
         self._live_preview = live

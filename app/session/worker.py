@@ -33,9 +33,8 @@ import numpy as np
 from PySide6.QtCore import QObject, Signal
 
 from ...core.errors import IsochorError
-from ...core.goal.constraints import Goal
-from ...core.solve.multilevel import solve
-from ...core.solve.solver import SolverOptions
+from ...core.goal.spec import Goal
+from ...core.scenario.problem import Problem
 
 #: a held worker waits at most this long for :meth:`SolveWorker.release`, seconds
 HOLD_LIMIT = 0.25
@@ -168,21 +167,20 @@ class SolveWorker(QObject):
 
     def start(
         self,
-        surface,
+        problem: Problem,
         nodes: np.ndarray,
         fixed: np.ndarray,
         *,
         goal: Goal | None = None,
-        target_ratio: float = 1.0,
-        options: SolverOptions | None = None,
         handles=(),
         live: bool = False,
         near: bool = False,
     ) -> int:
-        """Stop the running solve and start a new one; returns its generation id.
+        """Stop the running solve and start a new one of ``problem`` (through
+        :meth:`isochor.core.scenario.problem.Problem.solve`); returns its generation id.
 
         ``fixed`` is (n,) bool (whole nodes) or (n, 3) bool (coordinates); ``goal`` is what
-        to hold (by default the volume at ``target_ratio``); ``handles`` are the surface
+        to hold (by default the problem's); ``handles`` are the surface
         handles (:class:`isochor.core.goal.handles.Handle`); ``live``: a live drag's frame,
         solved on a coarse level only and never on the full mesh (its result is a
         ``preview``, see :func:`isochor.core.solve.multilevel.solve`); ``near``: ``nodes`` are the
@@ -190,21 +188,11 @@ class SolveWorker(QObject):
         full mesh there (see the same)."""
         nodes = np.array(nodes, dtype=np.float64)
         fixed = np.array(fixed, dtype=bool)
-        goal = goal if goal is not None else Goal(target_ratio=target_ratio)
         handles = tuple(handles)
         live, near = bool(live), bool(near)
 
         def make():
-            return solve(
-                surface,
-                nodes,
-                fixed,
-                goal=goal,
-                handles=handles,
-                options=options,
-                live=live,
-                near=near,
-            )
+            return problem.solve(nodes, fixed, goal=goal, handles=handles, live=live, near=near)
 
         return self.run(make)
 

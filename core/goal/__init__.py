@@ -1,7 +1,10 @@
 """What a solve holds besides the pinned nodes, as constraints on the lattice nodes.
 
-- :mod:`.constraints` :class:`~.constraints.Goal` (the goal's fields, declared once) and the
-  constraints of one pyramid level: total or per-body volume, centroid
+- :mod:`.spec`        :class:`~.spec.Goal`: the goal's fields, each declared once with its
+  default, its allowed values and its public spellings (:data:`~.spec.GOAL_FIELDS`: the
+  scenario key, the API keyword, the command-line option); light, no numpy
+- :mod:`.constraints` the goal's constraints on one pyramid level: total or per-body volume,
+  centroid
 - :mod:`.anchor`      no rigid drift: which lattice face to hold while too little is fixed
 - :mod:`.handles`     surface handles: points of the model sent to places, as linear
   constraints reduced to what the free nodes can reach (least squares)

@@ -1,5 +1,5 @@
-"""What a solve holds besides the pinned nodes: the :class:`Goal`, and its constraints on
-one pyramid level as functions of the node positions.
+"""What a solve holds besides the pinned nodes, as constraints on one pyramid level: functions
+of the node positions (the :class:`~isochor.core.goal.spec.Goal` says which).
 
 The paper keeps one number, the total signed volume. A goal may instead keep
 
@@ -31,70 +31,17 @@ from functools import cached_property
 import numpy as np
 
 from ..bodies import arrange
-from ..errors import IsochorError
 from ..io.repair import body_labels, compact
 from ..lattice import Lattice, PointBasis
 from ..mesh import TriMesh
 from ..volume import MomentOperator, VolumeOperator, face_volumes
 
-PRESERVE = ("total", "per-body")
-ANCHORS = ("far-side", "none")
-SYMMETRIES = ("none", "x", "y", "z")
-#: the volume ratios a lattice deformation reaches without folding the model: measured on
-#: the shared models (docs/CONSTRAINTS.md), beyond these the solve folds or fails
-RATIO_RANGE = (0.05, 20.0)
+# Goal is declared in .spec; the other names are re-exported, transitionally, for app/
+# (app/editor, app/window), which imports them from here until it imports them from .spec.
+from .spec import ANCHORS, PRESERVE, RATIO_RANGE, SYMMETRIES, Goal, check_ratio  # noqa: F401
+
 #: the centroid is held to this fraction of the volume tolerance, in object sizes
 CENTROID_SCALE = 0.1
-
-
-@dataclass(frozen=True)
-class Goal:
-    """What the solve must hold.
-
-    Attributes
-    ----------
-    target_ratio : final volume over the rest volume (of every body with ``per-body``)
-    preserve : ``"total"`` (the paper: one volume) or ``"per-body"``
-    keep_centroid : also keep the solid's centre of mass where it was
-    anchor : ``"far-side"``: when the fixed nodes leave the lattice free to move rigidly, the
-        lattice face farthest from the moved nodes is held too (no rigid drift); ``"none"``:
-        the paper's behaviour
-    fold_guard : penalise a nearly inverted deformation (det J near zero) so that the solver
-        does not meet the volume by turning part of the model inside out
-    symmetry : ``"x"``, ``"y"`` or ``"z"``: the edit and the result are mirror images across
-        that mid-plane of the lattice (:mod:`isochor.core.goal.symmetry`); ``"none"``
-    """
-
-    target_ratio: float = 1.0
-    preserve: str = "total"
-    keep_centroid: bool = False
-    anchor: str = "far-side"
-    fold_guard: bool = True
-    symmetry: str = "none"
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "target_ratio", check_ratio(self.target_ratio))
-        if self.preserve not in PRESERVE:
-            raise IsochorError(f"preserve: must be one of {', '.join(PRESERVE)}")
-        if self.anchor not in ANCHORS:
-            raise IsochorError(f"anchor: must be one of {', '.join(ANCHORS)}")
-        if self.symmetry not in SYMMETRIES:
-            raise IsochorError(f"symmetry: must be one of {', '.join(SYMMETRIES)}")
-
-
-def check_ratio(ratio: float, where: str = "target volume ratio") -> float:
-    """``ratio`` if the method can reach it, else an error that says what it can reach."""
-    lo, hi = RATIO_RANGE
-    try:
-        value = float(ratio)
-    except (TypeError, ValueError):
-        value = float("nan")
-    if isinstance(ratio, bool) or not lo <= value <= hi:
-        raise IsochorError(
-            f"{where} {ratio!r} is outside {lo:g}..{hi:g}: a lattice deformation cannot "
-            "squash or inflate a model further without turning it inside out"
-        )
-    return value
 
 
 @dataclass(frozen=True)

@@ -19,8 +19,8 @@ import numpy as np
 
 from ..errors import IsochorError
 from ..lattice import Lattice
-from .constraints import SYMMETRIES
 from .handles import Handle
+from .spec import SYMMETRIES
 
 
 class Mirror:

@@ -2,7 +2,9 @@
 
 - :mod:`.formats`   the file suffixes Isochor reads and writes (their one owner)
 - :mod:`.meshio`    read OBJ/PLY/STL/OFF/glTF into a clean closed TriMesh (through
-  :mod:`.repair`); write a mesh anew; the one PLY header parser
+  :mod:`.repair`); write a mesh anew
+- :mod:`.plyheader` the PLY header: its one parser and the one table of PLY's scalar types
+  (for :mod:`.meshio` and :mod:`.roundtrip`)
 - :mod:`.repair`    weld, drop degenerate triangles, check closed, repair winding, orient
 - :mod:`.roundtrip` rewrite an OBJ/PLY/STL/OFF file: positions deformed, all else kept
 - :mod:`.gltf`      read glTF/GLB; rewrite it deformed, or with a morph target

@@ -32,6 +32,7 @@ from ..validate import MAX_COORDINATE, input_file
 from ..volume import signed_volume
 from .atomic import atomic_write_bytes
 from .formats import GLTF_FORMATS, READ_FORMATS, WRITE_FORMATS, listing
+from .plyheader import PlyHeader
 from .repair import clean_closed_surface
 
 #: the largest model file read (a safeguard: a huge or sparse file fails at once, with one
@@ -159,19 +160,6 @@ def _checked(
     return vertices, faces
 
 
-#: PLY scalar types as numpy's (little-endian)
-_PLY_TYPES = {
-    **dict.fromkeys(("char", "int8"), "i1"),
-    **dict.fromkeys(("uchar", "uint8"), "u1"),
-    **dict.fromkeys(("short", "int16"), "<i2"),
-    **dict.fromkeys(("ushort", "uint16"), "<u2"),
-    **dict.fromkeys(("int", "int32"), "<i4"),
-    **dict.fromkeys(("uint", "uint32"), "<u4"),
-    **dict.fromkeys(("float", "float32"), "<f4"),
-    **dict.fromkeys(("double", "float64"), "<f8"),
-}
-
-
 def binary_ply(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     """Vertices and triangles of a binary little-endian PLY of the common layout, read
     straight into numpy (several times faster than trimesh on a large model): a vertex
@@ -181,37 +169,33 @@ def binary_ply(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     end = data.find(b"end_header\n", 0, SNIFF_BYTES)
     if not data.startswith(b"ply\n") or end < 0:
         return None
-    lines = data[:end].decode("ascii", "replace").split("\n")[1:]
-    lines = [
-        w for w in (line.split() for line in lines) if w and w[0] not in ("comment", "obj_info")
-    ]
     try:
-        (fmt, vertex, *vprops, face, fprop) = lines
-        vtypes = {}
-        for word, kind, name in vprops:
-            if word != "property" or name in vtypes:
-                return None
-            vtypes[name] = _PLY_TYPES[kind]
-        if (
-            fmt != ["format", "binary_little_endian", "1.0"]
-            or vertex[:2] != ["element", "vertex"]
-            or face[:2] != ["element", "face"]
-            or fprop[:2] != ["property", "list"]
-            or fprop[4:] not in (["vertex_indices"], ["vertex_index"])
-            or not {"x", "y", "z"} <= vtypes.keys()
-        ):
-            return None
-        n_vertices, n_faces = int(vertex[2]), int(face[2])
-        vtype = np.dtype(list(vtypes.items()))
-        ftype = np.dtype([("n", _PLY_TYPES[fprop[2]]), ("i", _PLY_TYPES[fprop[3]], (3,))])
-    except (ValueError, KeyError, TypeError, IndexError):
+        header = PlyHeader.parse(data[: end + len(b"end_header\n")])
+    except IsochorError:
         return None
-    start = end + len(b"end_header\n")
     if (
-        n_vertices < 0
-        or n_faces <= 0
-        or len(data) - start != n_vertices * vtype.itemsize + n_faces * ftype.itemsize
+        header.encoding != "binary_little_endian"
+        or header.version != "1.0"
+        or [e.name for e in header.elements] != ["vertex", "face"]
     ):
+        return None
+    vertex, face = header.elements
+    names = [p.name for p in vertex.properties]
+    if (
+        vertex.has_lists
+        or len(set(names)) != len(names)
+        or not {"x", "y", "z"} <= set(names)
+        or len(face.properties) != 1
+        or face.properties[0].count is None
+        or face.properties[0].name not in ("vertex_indices", "vertex_index")
+    ):
+        return None
+    n_vertices, n_faces = vertex.rows, face.rows
+    index = face.properties[0]
+    vtype = np.dtype([(p.name, "<" + p.kind) for p in vertex.properties])
+    ftype = np.dtype([("n", "<" + index.count), ("i", "<" + index.kind, (3,))])
+    start = header.body
+    if n_faces <= 0 or len(data) - start != n_vertices * vtype.itemsize + n_faces * ftype.itemsize:
         return None
     if ftype["i"].base.kind == "f":
         return None

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import IsochorError
+from .plyheader import PlyHeader
 
 #: ``(k, 3)`` float64 points -> ``(k, 3)`` deformed points
 Deform = Callable[[np.ndarray], np.ndarray]
@@ -247,65 +248,44 @@ def _mtllib_edits(libraries: list, source_dir, out_dir) -> tuple[list, list[str]
 
 
 # -- PLY ----------------------------------------------------------------------------------
-_CODES = ["i1", "u1", "i2", "u2", "i4", "u4", "f4", "f8"]
-_OLD_NAMES = ["char", "uchar", "short", "ushort", "int", "uint", "float", "double"]
-_NEW_NAMES = ["int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"]
-_PLY_TYPES = {n: c for names in (_OLD_NAMES, _NEW_NAMES) for n, c in zip(names, _CODES)}
-_PLY_FORMATS = {"ascii": "", "binary_little_endian": "<", "binary_big_endian": ">"}
-_STRUCT = dict(zip(_CODES, "bBhHiIfd"))
-
-
 def _parse_ply(data: bytes, name: str, *_) -> _Parsed:
-    end = data.find(b"end_header")
-    if not data.lstrip(b"\xef\xbb\xbf").startswith(b"ply") or end < 0:
-        raise IsochorError(f"{name}: not a PLY file (no ply ... end_header header)")
-    endian, elements = None, []  # [(name, count, [(property, type, list count type)])]
-    for line in data[:end].decode("latin-1").splitlines()[1:]:
-        w = line.split() or ["comment"]
-        try:
-            if w[0] == "format":
-                endian = _PLY_FORMATS[w[1]]
-            elif w[0] == "element" and int(w[2]) >= 0:
-                elements.append((w[1], int(w[2]), []))
-            elif w[0] == "property" and len(w) == (5 if w[1] == "list" else 3):
-                count_type = len(w) == 5 and _PLY_TYPES[w[2]]
-                elements[-1][2].append((w[-1], _PLY_TYPES[w[-2]], count_type))
-            elif w[0] not in ("comment", "obj_info"):
-                raise ValueError
-        except (ValueError, KeyError, IndexError):
-            line = line.strip()[:60]
-            raise IsochorError(f"{name}: not a valid PLY header line: {line!r}") from None
-    index = next((i for i, e in enumerate(elements) if e[0] == "vertex"), None)
-    if endian is None or index is None or not elements[index][1]:
+    header = PlyHeader.parse(data, name)
+    index = header.element("vertex")
+    if header.encoding is None or index is None or not header.elements[index].rows:
         raise IsochorError(f"{name}: the PLY header has no format line, or no vertices")
-    if any(c for _, _, c in elements[index][2]):
+    vertex = header.elements[index]
+    if vertex.has_lists:
         raise IsochorError(f"{name}: Isochor cannot rewrite PLY vertices with list properties")
-    floats = {p for p, t, _ in elements[index][2] if t[0] == "f"}
+    floats = {p.name for p in vertex.properties if p.kind[0] == "f"}
     want = ["x", "y", "z"] + ["nx", "ny", "nz"] * ({"nx", "ny", "nz"} <= floats)
     if bad := [p for p in want if p not in floats]:
         raise IsochorError(f"{name}: the PLY vertex has no float or double property {bad[0]}")
-    body, scan = data.find(b"\n", end) + 1 or len(data), _ply_binary if endian else _ply_ascii
-    values, write = scan(data, body, endian, elements, index, want, name)
+    scan = _ply_binary if header.byte_order else _ply_ascii
+    values, write = scan(data, header, index, want, name)
     return _Parsed(values[:, :3], write, values[:, 3:] if len(want) == 6 else None)
 
 
-def _ply_binary(data, pos, endian, elements, index, want, name):
-    for label, count, props in elements[:index]:  # the elements before the vertices
-        sizes = [np.dtype(t).itemsize for _, t, _ in props]
-        if not any(c for _, _, c in props):
-            pos += count * sum(sizes)
+def _ply_binary(data: bytes, header: PlyHeader, index: int, want: list[str], name: str):
+    pos, endian = header.body, header.byte_order
+    for element in header.elements[:index]:  # the elements before the vertices
+        props = element.properties
+        sizes = [np.dtype(p.kind).itemsize for p in props]
+        if not element.has_lists:
+            pos += element.rows * sum(sizes)
             continue
         try:  # rows with lists, one by one
-            for _ in range(count):
-                for (_, _, c), size in zip(props, sizes):
-                    n = struct.unpack_from(endian + _STRUCT[c], data, pos)[0] if c else 1
+            for _ in range(element.rows):
+                for p, size in zip(props, sizes):
+                    c = p.count
+                    n = struct.unpack_from(endian + np.dtype(c).char, data, pos)[0] if c else 1
                     if not 0 <= n == int(n):
                         raise struct.error
                     pos += (np.dtype(c).itemsize if c else 0) + int(n) * size
         except struct.error:
+            label = element.name
             raise IsochorError(f"{name}: the PLY file is damaged or ends in its {label}") from None
-    _, count, props = elements[index]
-    row = np.dtype([(p, endian + t) for p, t, _ in props])
+    count = header.elements[index].rows
+    row = np.dtype([(p.name, endian + p.kind) for p in header.elements[index].properties])
     if pos + count * row.itemsize > len(data):
         raise IsochorError(f"{name}: the PLY file is truncated (it ends in its vertex data)")
     values = np.frombuffer(data, row, count, pos)
@@ -321,22 +301,25 @@ def _ply_binary(data, pos, endian, elements, index, want, name):
     return np.column_stack([values[p] for p in want]).astype(np.float64), write
 
 
-def _ply_ascii(data, pos, _endian, elements, index, want, name):
-    for _ in range(sum(e[1] for e in elements[:index])):  # one row a line
+def _ply_ascii(data: bytes, header: PlyHeader, index: int, want: list[str], name: str):
+    pos = header.body
+    for _ in range(sum(e.rows for e in header.elements[:index])):  # one row a line
         if not (pos := data.find(b"\n", pos) + 1):
             raise IsochorError(f"{name}: the PLY file ends before its vertices")
-    _, count, props = elements[index]
-    n = count * len(props)
+    count = header.elements[index].rows
+    names = [p.name for p in header.elements[index].properties]
+    kinds = {p.name: p.kind for p in header.elements[index].properties}
+    n = count * len(names)
     flat = list(islice(_TOKEN.finditer(data, pos), n + 1))  # and the token after them
     rows = len(flat) >= n and data.count(10, flat[0].start(), flat[n - 1].end()) == count - 1
     if not rows or (len(flat) > n and 10 not in data[flat[n - 1].end() : flat[n].start()]):
-        raise IsochorError(f"{name}: the PLY vertex lines do not hold {len(props)} values each")
+        raise IsochorError(f"{name}: the PLY vertex lines do not hold {len(names)} values each")
     flat = flat[:n]
-    columns = [flat[[p for p, _, _ in props].index(w) :: len(props)] for w in want]
+    columns = [flat[names.index(w) :: len(names)] for w in want]
     spans = np.array([[m.span() for m in col] for col in columns], np.int64).transpose(1, 0, 2)
     tokens = [m.group() for col in columns for m in col]
     values = _floats(tokens, name, lambda i: f"vertex {i % count + 1}").reshape(len(want), -1).T
-    single = [{p: t for p, t, _ in props}[w] == "f4" for w in want]
+    single = [kinds[w] == "f4" for w in want]
     slots = [(spans[:, j : j + 3], values[:, j : j + 3], all(single[j : j + 3])) for j in (0, 3)]
     return values, _text(data, slots[: len(want) // 3])
 

@@ -26,7 +26,7 @@ Version 3 adds direct manipulation and symmetric editing::
                  "target_volume_ratio": 0.9}],   keyframed edits (scenario.poses)
       "timeline": {"start": 0, "end": 24, "rate": 24, "interpolation": "smooth"}
 
-Version 2 adds what a solve holds besides the volume (:class:`isochor.core.goal.constraints.Goal`);
+Version 2 adds what a solve holds besides the volume (:class:`isochor.core.goal.spec.Goal`);
 a file that uses none of it is still written as version 1, and version 1 files read as
 before::
 
@@ -56,14 +56,13 @@ from typing import Any
 
 from ..defaults import LATTICE_NODES, PADDING, TOL_NODES, TOL_VOLUME
 from ..errors import IsochorError
-from ..goal.constraints import ANCHORS, PRESERVE, SYMMETRIES, Goal, check_ratio
 from ..goal.handles import Handle
+from ..goal.spec import GOAL_FIELDS, Goal
 from ..io.atomic import atomic_write_text
 from ..io.formats import is_model
 from ..lattice import MAX_NODES, MIN_NODES
 from ..validate import (
     check_keys,
-    flag,
     input_file,
     int_triple,
     number,
@@ -71,7 +70,6 @@ from ..validate import (
     parse_int,
     show,
     vec3,
-    word,
 )
 from .edits import Edit, Move
 from .poses import Timeline
@@ -79,20 +77,18 @@ from .poses import Timeline
 FORMAT = "isochor-scenario"
 VERSION = 3
 VERSIONS = (1, 2, 3)
-#: the keys version 2 added, with their defaults
-GOAL_DEFAULTS = {
-    "preserve": "total",
-    "keep_centroid": False,
-    "anchor": "far-side",
-    "fold_guard": True,
-}
+#: the keys version 2 added: the goal's (:data:`isochor.core.goal.spec.GOAL_FIELDS`)
+V2_KEYS = tuple(f.key for f in GOAL_FIELDS if f.version == 2)
 #: the keys version 3 added
-V3_KEYS = ("handles", "symmetry", "poses", "timeline")
+V3_KEYS = ("handles", *(f.key for f in GOAL_FIELDS if f.version == 3), "poses", "timeline")
+#: Transitional, for ``app/editor`` until its state holds a :class:`Goal`: the version 2
+#: keys with their defaults (derived from the goal's fields; nothing in core uses it)
+GOAL_DEFAULTS = {f.key: f.default for f in GOAL_FIELDS if f.version == 2}
 
 #: a scenario is a few kilobytes; anything larger than this is not one
 MAX_SCENARIO_BYTES = 16 * 2**20
 #: the tolerances: the range the solver is meant for (the volume ratio's is
-#: :data:`isochor.core.goal.constraints.RATIO_RANGE`)
+#: :data:`isochor.core.goal.spec.RATIO_RANGE`)
 TOLERANCE_RANGE = (1e-12, 0.5)
 
 
@@ -106,15 +102,11 @@ class Scenario:
     pins: tuple[tuple[int, int, int], ...] = ()  #: pinned on all three axes
     #: pinned on some axes only: (node, axes) with axes a non-empty part of "xyz"
     axis_pins: tuple[tuple[tuple[int, int, int], str], ...] = ()
-    target_volume_ratio: float = 1.0
+    #: what the solve must hold: the target ratio and the rest of the goal
+    goal: Goal = Goal()
     tol_volume: float = TOL_VOLUME
     tol_nodes: float = TOL_NODES
-    preserve: str = "total"
-    keep_centroid: bool = False
-    anchor: str = "far-side"
-    fold_guard: bool = True
     handles: tuple[Handle, ...] = ()
-    symmetry: str = "none"
     #: keyframed poses and the frames to solve (:mod:`isochor.core.scenario.poses`), or None
     timeline: Timeline | None = None
     base_dir: Path | None = field(default=None, compare=False)
@@ -134,9 +126,8 @@ class Scenario:
                 "lattice",
                 "moves",
                 "pins",
-                "target_volume_ratio",
                 "tolerance",
-                *GOAL_DEFAULTS,
+                *(f.key for f in GOAL_FIELDS),
                 *V3_KEYS,
             },
             {"model"},
@@ -148,7 +139,7 @@ class Scenario:
             raise IsochorError(
                 f"version: this Isochor reads versions 1 to {VERSION}, got {show(version)}"
             )
-        for newer, keys in ((3, set(V3_KEYS)), (2, set(GOAL_DEFAULTS))):
+        for newer, keys in ((3, set(V3_KEYS)), (2, set(V2_KEYS))):
             if version < newer and set(doc) & keys:
                 raise IsochorError(
                     f"{sorted(set(doc) & keys)[0]}: a version {newer} key in a version "
@@ -188,13 +179,7 @@ class Scenario:
                 tuple(vec3(a, f"lattice.frame.axes[{n}]") for n, a in enumerate(axes)),
             )
         edit = Edit.from_json(doc, shape, version)
-        ratio = number(doc.get("target_volume_ratio", 1.0), "target_volume_ratio")
-        ratio = check_ratio(ratio, "target_volume_ratio")
-        preserve = word(doc.get("preserve", "total"), "preserve", PRESERVE)
-        anchor = word(doc.get("anchor", "far-side"), "anchor", ANCHORS)
-        keep_centroid = flag(doc.get("keep_centroid", False), "keep_centroid")
-        fold_guard = flag(doc.get("fold_guard", True), "fold_guard")
-        symmetry = word(doc.get("symmetry", "none"), "symmetry", SYMMETRIES)
+        goal = Goal.from_json(doc)
         timeline = Timeline.from_json(doc.get("poses", []), doc.get("timeline"), shape, version)
         tol = doc.get("tolerance", {})
         check_keys(tol, "tolerance", {"volume", "nodes"}, set())
@@ -208,29 +193,12 @@ class Scenario:
             edit.moves,
             edit.pins,
             edit.axis_pins,
-            ratio,
-            tv,
-            tn,
-            preserve,
-            keep_centroid,
-            anchor,
-            fold_guard,
-            edit.handles,
-            symmetry,
-            timeline,
-            Path(base_dir) if base_dir is not None else None,
-        )
-
-    @property
-    def goal(self) -> Goal:
-        """What the solve must hold."""
-        return Goal(
-            self.target_volume_ratio,
-            self.preserve,
-            self.keep_centroid,
-            self.anchor,
-            self.fold_guard,
-            self.symmetry,
+            goal=goal,
+            tol_volume=tv,
+            tol_nodes=tn,
+            handles=edit.handles,
+            timeline=timeline,
+            base_dir=Path(base_dir) if base_dir is not None else None,
         )
 
     @property
@@ -240,12 +208,12 @@ class Scenario:
 
     @property
     def version(self) -> int:
-        """The oldest version that can hold this scenario: 3 with handles or symmetry, 2 when
-        a version 2 key differs from its default (or an axis pin is used), else 1."""
-        if self.handles or self.symmetry != "none" or self.timeline is not None:
+        """The oldest version that can hold this scenario: 3 with handles, poses or
+        symmetry, 2 when a version 2 key differs from its default (or an axis pin is
+        used), else 1."""
+        if self.handles or self.timeline is not None:
             return 3
-        changed = any(getattr(self, k) != v for k, v in GOAL_DEFAULTS.items())
-        return 2 if changed or self.axis_pins else 1
+        return max(self.goal.version, 2 if self.axis_pins else 1)
 
     def to_dict(self) -> dict[str, Any]:
         lattice: dict[str, Any] = {"nodes": list(self.lattice_nodes)}
@@ -262,13 +230,10 @@ class Scenario:
             "model": dict(self.model),
             "lattice": lattice,
             **self.edit.to_json(),
-            "target_volume_ratio": self.target_volume_ratio,
+            **self.goal.to_json({1}),
             "tolerance": {"volume": self.tol_volume, "nodes": self.tol_nodes},
+            **self.goal.to_json(range(2, self.version + 1)),
         }
-        if self.version > 1:
-            doc.update({k: getattr(self, k) for k in GOAL_DEFAULTS})
-        if self.version > 2:
-            doc["symmetry"] = self.symmetry
         if self.timeline is not None:
             doc["poses"], doc["timeline"] = self.timeline.to_json()
         return doc
@@ -326,7 +291,9 @@ class Scenario:
 
     def checked(self, changes: dict[str, Any]) -> Scenario:
         """``scenario`` with ``changes``, each checked as the scenario file's field would be
-        (the same one-line errors: ``lattice.nodes: each axis needs 2 to 10 nodes``)."""
+        (the same one-line errors: ``lattice.nodes: each axis needs 2 to 10 nodes``).
+        ``changes`` names ``lattice_nodes``, ``padding``, ``frame``, ``moves`` (a new
+        lattice: the old edits go) and the goal's fields by their scenario keys."""
         doc = self.to_dict()
         doc["model"] = {"builtin": "sphere"}  # the model is not what is checked here
         lat = doc["lattice"]
@@ -338,11 +305,9 @@ class Scenario:
         if "frame" in changes:
             lat.pop("padding", None)
             lat["frame"] = {"origin": changes["frame"][0], "axes": changes["frame"][1]}
-        if "target_volume_ratio" in changes:
-            doc["target_volume_ratio"] = changes["target_volume_ratio"]
-        for key in (*GOAL_DEFAULTS, "symmetry"):
-            if key in changes:
-                doc[key], doc["version"] = changes[key], VERSION
+        for f in GOAL_FIELDS:
+            if f.key in changes:
+                doc[f.key], doc["version"] = changes[f.key], VERSION
         if "moves" in changes:  # a new lattice: the old edits name nodes it may not have
             doc["moves"], doc["pins"] = [], []
             doc.pop("poses", None)
@@ -351,4 +316,23 @@ class Scenario:
         return replace(checked, model=self.model, base_dir=self.base_dir, source=self.source)
 
     def with_(self, **changes) -> Scenario:
+        """This scenario with some fields changed. Transitional, for ``app/editor`` until
+        it holds a :class:`Goal`: a goal field may also be given by its scenario key
+        (``target_volume_ratio=0.9``), and is changed in :attr:`goal`."""
+        by_key = {f.name: changes.pop(f.key) for f in GOAL_FIELDS if f.key in changes}
+        if by_key:
+            changes["goal"] = changes.get("goal", self.goal).with_(**by_key)
         return replace(self, **changes)
+
+
+def _read_by_key(name: str):
+    return property(
+        lambda scenario: getattr(scenario.goal, name),
+        doc=f"``goal.{name}``, read by its scenario key (transitional, for app/editor)",
+    )
+
+
+# Transitional, for app/editor until it reads ``scenario.goal``: each goal field read by its
+# scenario key (``scenario.target_volume_ratio``); derived from the goal's fields.
+for _field in GOAL_FIELDS:
+    setattr(Scenario, _field.key, _read_by_key(_field.name))

@@ -28,13 +28,15 @@ from typing import Any
 import numpy as np
 
 from ..errors import IsochorError
-from ..goal.constraints import check_ratio
+from ..goal.spec import goal_field
 from ..validate import as_list, check_keys, number, word
 from .edits import Edit
 
 INTERPOLATIONS = ("linear", "smooth")
 #: frames a timeline may hold (a minute at 60 frames a second is 3600)
 MAX_FRAMES = 10_000
+#: a pose's own target ratio: the goal's field, under its scenario key
+RATIO = goal_field("target_ratio")
 
 
 @dataclass(frozen=True)
@@ -62,17 +64,15 @@ class Timeline:
         poses = []
         for n, doc in enumerate(as_list(items, "poses")):
             where = f"poses[{n}]"
-            check_keys(
-                doc, where, {"frame", "moves", "pins", "handles", "target_volume_ratio"}, {"frame"}
-            )
+            check_keys(doc, where, {"frame", "moves", "pins", "handles", RATIO.key}, {"frame"})
             frame = doc["frame"]
             if not isinstance(frame, int) or isinstance(frame, bool) or abs(frame) > MAX_FRAMES:
                 raise IsochorError(f"{where}.frame: must be a whole number of frames")
             if any(p.frame == frame for p in poses):
                 raise IsochorError(f"{where}.frame: frame {frame} already has a key")
-            ratio = doc.get("target_volume_ratio")
+            ratio = doc.get(RATIO.key)
             if ratio is not None:
-                ratio = check_ratio(number(ratio, f"{where}.target_volume_ratio"), where)
+                ratio = RATIO.check(number(ratio, f"{where}.{RATIO.key}"), where)
             poses.append(Pose(frame, Edit.from_json(doc, shape, version, f"{where}."), ratio))
         settings = {} if settings is None else settings
         check_keys(settings, "timeline", {"start", "end", "rate", "interpolation"}, set())
@@ -102,7 +102,7 @@ class Timeline:
         for p in self.poses:
             doc: dict[str, Any] = {"frame": p.frame, **p.edit.to_json()}
             if p.target_ratio is not None:
-                doc["target_volume_ratio"] = p.target_ratio
+                doc[RATIO.key] = p.target_ratio
             poses.append(doc)
         settings = {"start": self.start, "end": self.end, "rate": self.rate}
         return poses, {**settings, "interpolation": self.interpolation}

@@ -8,7 +8,7 @@ brings the document, the model files (:mod:`isochor.core.io.meshio`), the level 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,12 +16,16 @@ import numpy as np
 
 from .. import kernels
 from ..errors import IsochorError
+from ..goal.handles import Handle
+from ..goal.spec import Goal
 from ..goal.symmetry import Mirror
 from ..io.meshio import load_mesh
 from ..lattice import Lattice
 from ..mesh import TriMesh
+from ..solve import multilevel
 from ..solve.multilevel import EmbeddedSurface
 from ..solve.pyramid import build_pyramid
+from ..solve.records import Progress, SolveResult
 from ..solve.solver import SolverOptions
 from .document import Scenario
 from .shapes import builtin_levels
@@ -80,6 +84,46 @@ class Problem:
     @property
     def options(self) -> SolverOptions:
         return SolverOptions(tol_volume=self.scenario.tol_volume, tol_nodes=self.scenario.tol_nodes)
+
+    def solve(
+        self,
+        nodes: np.ndarray | None = None,
+        fixed: np.ndarray | None = None,
+        *,
+        goal: Goal | None = None,
+        handles: Sequence[Handle] | None = None,
+        options: SolverOptions | None = None,
+        live: bool = False,
+        near: bool = False,
+        start_level: int | None = None,
+    ) -> Generator[Progress, None, SolveResult]:
+        """Start a solve of this problem: the one place every caller (the command line,
+        the API's session, the window's worker, sequences, the benchmark) starts one.
+
+        Each piece defaults to the problem's own: its start ``nodes`` and ``fixed``
+        coordinates, the scenario's ``goal`` and ``handles``, the scenario's tolerances
+        (``options``). A caller that edits (the window, a session, a frame of a sequence)
+        gives its own. ``live``, ``near`` and ``start_level`` are
+        :func:`isochor.core.solve.multilevel.solve`'s.
+
+        Returns
+        -------
+        The progress generator of :func:`isochor.core.solve.multilevel.solve`: it yields
+        :class:`~isochor.core.solve.records.Progress` records and returns the
+        :class:`~isochor.core.solve.records.SolveResult`; closing it stops the solve.
+        """
+        sc = self.scenario
+        return multilevel.solve(
+            self.surface,
+            self.nodes if nodes is None else nodes,
+            self.fixed if fixed is None else fixed,
+            goal=sc.goal if goal is None else goal,
+            handles=sc.handles if handles is None else handles,
+            options=self.options if options is None else options,
+            start_level=start_level,
+            near=near,
+            live=live,
+        )
 
 
 #: ``path -> Model``: how a model file becomes a pyramid.
@@ -146,7 +190,7 @@ def build(
     else:
         lattice = Lattice(scenario.lattice_nodes, scenario.frame[0], scenario.frame[1])
     nodes, fixed = scenario.edit.apply(lattice)
-    Mirror.of(lattice, scenario.symmetry)  # a frame the mirror cannot use fails here
+    Mirror.of(lattice, scenario.goal.symmetry)  # a frame the mirror cannot use fails here
     surface = EmbeddedSurface(lattice, levels)
     fit = coverage(lattice, surface.full.vertices)
     return Problem(scenario, surface, nodes, fixed, model, fit)

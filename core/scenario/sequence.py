@@ -11,14 +11,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Generator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import IsochorError
 from ..goal.handles import Handle
 from ..solve.generators import run_to_end
-from ..solve.multilevel import solve
 from ..solve.records import SolveResult
 from .poses import Timeline
 from .problem import Problem
@@ -61,23 +60,17 @@ def solve_sequence(problem: Problem) -> Generator[Frame, None, Sequence]:
     """Solve the scenario's timeline; see the module notes."""
     t0 = time.perf_counter()
     timeline = _timeline(problem)
-    surface, sc = problem.surface, problem.scenario
-    lattice = surface.lattice
-    goal, options = sc.goal, problem.options
+    lattice = problem.surface.lattice
+    goal = problem.scenario.goal
     keys: list[_Key] = []
     key_frames: list[Frame] = []
     x = lattice.rest_nodes  # the keys' free nodes start at rest, not at the working edit
     for n, pose in enumerate(timeline.poses):
         nodes, fixed = pose.edit.apply(lattice, f"poses[{n}].")
         start = np.where(fixed, nodes, x)
-        ratio = sc.target_volume_ratio if pose.target_ratio is None else pose.target_ratio
-        run = solve(
-            surface,
-            start,
-            fixed,
-            goal=replace(goal, target_ratio=ratio),
-            handles=pose.edit.handles,
-            options=options,
+        ratio = goal.target_ratio if pose.target_ratio is None else pose.target_ratio
+        run = problem.solve(
+            start, fixed, goal=goal.with_(target_ratio=ratio), handles=pose.edit.handles
         )
         result = run_to_end(run)
         x = np.array(result.nodes)
@@ -102,14 +95,8 @@ def solve_sequence(problem: Problem) -> Generator[Frame, None, Sequence]:
                 for k in (ka, kb)
             ]
             handles.append(Handle(at, (1.0 - s) * ends[0] + s * ends[1]))
-        run = solve(
-            surface,
-            start,
-            fixed,
-            goal=replace(goal, target_ratio=ratio),
-            handles=handles,
-            options=options,
-            near=True,
+        run = problem.solve(
+            start, fixed, goal=goal.with_(target_ratio=ratio), handles=handles, near=True
         )
         result = run_to_end(run)
         x = np.array(result.nodes)

@@ -30,8 +30,8 @@ import numpy as np
 from .. import kernels
 from ..errors import IsochorError
 from ..goal.anchor import held_face
-from ..goal.constraints import Goal
 from ..goal.handles import Handle, HandleSystem, handle_rows
+from ..goal.spec import Goal
 from ..goal.symmetry import Mirror
 from .generators import relay
 from .outcome import outcome, preview
@@ -71,7 +71,7 @@ def solve(
     nodes : (n, 3) current node positions (moved nodes where the user put them)
     fixed : (n,) bool, True for pinned and moved nodes, or (n, 3) bool per coordinate
     target_ratio : target volume over the rest volume, when no ``goal`` is given
-    goal : what to hold (:class:`isochor.core.goal.constraints.Goal`); by default the volume at
+    goal : what to hold (:class:`isochor.core.goal.spec.Goal`); by default the volume at
         ``target_ratio``, with the far-side anchor and the fold guard
     handles : points of the model that must land at given places
         (:class:`isochor.core.goal.handles.Handle`); under symmetry each gets its mirror image

@@ -16,9 +16,10 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import IsochorError
-from ..goal.constraints import Bodies, Constraints, Goal, Level
+from ..goal.constraints import Bodies, Constraints, Level
 from ..goal.folds import FoldCheck, FoldGuard, interior_points
 from ..goal.handles import HandleSystem
+from ..goal.spec import Goal
 from ..lattice import Lattice
 from ..mesh import TriMesh
 from ..springs import SpringNetwork

@@ -243,7 +243,7 @@ def test_unsaved_changes_prompt_on_close(qtbot, window, monkeypatch):
 def test_a_solver_failure_shows_the_message_and_keeps_the_edit(qtbot, window, monkeypatch):
     from PySide6.QtWidgets import QMessageBox
 
-    import isochor.app.session.worker
+    import isochor.core.solve.multilevel
     from isochor.core.errors import IsochorError
 
     win = window
@@ -258,7 +258,7 @@ def test_a_solver_failure_shows_the_message_and_keeps_the_edit(qtbot, window, mo
         raise IsochorError("The free nodes cannot change the model's volume.")
         yield  # pragma: no cover
 
-    monkeypatch.setattr(isochor.app.session.worker, "solve", broken)
+    monkeypatch.setattr(isochor.core.solve.multilevel, "solve", broken)  # Problem.solve's
     row = pickable_node(win, want_free=True)
     drag(qtbot, win, row)
     edit = np.array(win.state.nodes)

@@ -254,8 +254,8 @@ def test_scale_gesture_under_symmetry_mirrors_onto_the_partners(qtbot, sphere):
 
 
 def test_two_handles_on_the_cow_solve_as_the_command_line_does(qtbot, themed_app, tmp_path):
+    from isochor.core.api import Session
     from isochor.core.scenario.document import Scenario
-    from isochor.core.scenario.problem import build
     from tests.models import model
 
     cow = model("cow.obj")
@@ -288,8 +288,9 @@ def test_two_handles_on_the_cow_solve_as_the_command_line_does(qtbot, themed_app
     assert st.solved and st.converged
 
     sc = Scenario.read(path)
-    problem = build(sc)
-    headless = run_solve(problem)  # the command line's own solve
+    session = Session(sc)
+    problem = session.problem
+    headless = run_solve(session)  # the command line's own solve
     assert headless.converged
     assert np.allclose(st.nodes, headless.nodes, atol=1e-9 * problem.surface.size, rtol=0)
     for h, r in zip(sc.handles, headless.handles):
