@@ -68,11 +68,11 @@ def draw_before_the_end(monkeypatch, win):
     intermediate frame is drawn, whatever the machine's load does to the frame timer."""
     import threading
 
-    from isochor.app.session import worker as worker_module
+    from isochor.core.solve import multilevel
 
     drawn = threading.Event()
     win.session.frameReady.connect(lambda _nodes, record: record is None or drawn.set())
-    solve = worker_module.solve
+    solve = multilevel.solve
 
     def paced(*args, **kwargs):
         records = solve(*args, **kwargs)
@@ -88,7 +88,7 @@ def draw_before_the_end(monkeypatch, win):
         finally:
             records.close()
 
-    monkeypatch.setattr(worker_module, "solve", paced)
+    monkeypatch.setattr(multilevel, "solve", paced)  # what Problem.solve calls
 
 
 def click(win, row, modifier=None):
