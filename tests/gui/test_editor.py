@@ -63,16 +63,17 @@ def drag(qtbot, win, row, offset=(70, -45), steps=8, modifier=None):
 
 
 def draw_before_the_end(monkeypatch, win):
-    """Each solve the worker starts waits, after its first progress record, until the
-    window has drawn a frame of a record (at most 30 s): then a solve cannot end before an
-    intermediate frame is drawn, whatever the machine's load does to the frame timer."""
+    """Each solve the worker starts (through :meth:`Problem.solve`, which runs
+    :func:`isochor.core.solve.multilevel.solve`) waits, after its first progress record, until
+    the window has drawn a frame of a record (at most 30 s): then a solve cannot end before
+    an intermediate frame is drawn, whatever the machine's load does to the frame timer."""
     import threading
 
-    from isochor.app.session import worker as worker_module
+    from isochor.core.solve import multilevel
 
     drawn = threading.Event()
     win.session.frameReady.connect(lambda _nodes, record: record is None or drawn.set())
-    solve = worker_module.solve
+    solve = multilevel.solve
 
     def paced(*args, **kwargs):
         records = solve(*args, **kwargs)
@@ -88,7 +89,7 @@ def draw_before_the_end(monkeypatch, win):
         finally:
             records.close()
 
-    monkeypatch.setattr(worker_module, "solve", paced)
+    monkeypatch.setattr(multilevel, "solve", paced)
 
 
 def click(win, row, modifier=None):
