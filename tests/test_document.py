@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -105,6 +105,11 @@ def summary(**kw) -> SolveSummary:
     return SolveSummary(**base)
 
 
+def settings(goal) -> dict:
+    """The goal's fields besides the target, by name."""
+    return {k: v for k, v in asdict(goal).items() if k != "target_ratio"}
+
+
 # -- DocState and the initial state ----------------------------------------------------------
 def test_example_document_starts_with_its_moves(torus_problem):
     d = Document.example()
@@ -118,7 +123,7 @@ def test_example_document_starts_with_its_moves(torus_problem):
     assert not st.pinned.any()
     np.testing.assert_array_equal(st.fixed, expect)
     np.testing.assert_allclose(st.nodes, torus_problem.nodes)
-    assert st.target_ratio == 1.0
+    assert st.goal.target_ratio == 1.0
     assert st.solved is False and st.result is None and not st.converged
     assert d.needs_solve()
     assert d.selection.rows.tolist() == []
@@ -160,7 +165,7 @@ def test_initial_state_at_rest_is_solved_without_result(rest):
     pinned = initial_state(build(Scenario.from_dict({**SPHERE, "pins": [[0, 0, 0]]})))
     assert pinned.solved is True and pinned.pinned.sum() == 1
     deflate = initial_state(build(Scenario.from_dict({**SPHERE, "target_volume_ratio": 0.9})))
-    assert deflate.solved is False and deflate.target_ratio == 0.9
+    assert deflate.solved is False and deflate.goal.target_ratio == 0.9
 
 
 def test_docstate_arrays_are_read_only_copies(sphere_problem):
@@ -192,7 +197,7 @@ def test_docstate_edits_and_same_edit(sphere_problem):
     assert np.flatnonzero(c.pinned).tolist() == [5]
     assert a.same_edit(st.moved_to(st.nodes + 0.0, [2, 1]))
     assert not a.same_edit(b)
-    assert not a.same_edit(a.edited(target_ratio=0.5))
+    assert not a.same_edit(a.edited(goal=replace(a.goal, target_ratio=0.5)))
     assert not a.same_edit(a.edited(nodes=a.nodes + 1e-9))
     assert st.solved and not st.moved.any()  # the original is untouched
     assert plural(1) == "1 node" and plural(3) == "3 nodes" and plural(0, "pin") == "0 pins"
@@ -430,7 +435,7 @@ def test_edit_target(rest):
     edit = goalrules.edit_target(rest.base(), 90)
     assert_fresh(edit)
     assert edit.text == "Target volume 90 %"
-    assert edit.state.target_ratio == pytest.approx(0.9)
+    assert edit.state.goal.target_ratio == pytest.approx(0.9)
     np.testing.assert_array_equal(edit.state.moved, rest.state.moved)
     assert goalrules.edit_target(rest.base(), 100) is None  # the same ratio
     assert goalrules.edit_target(rest.base(), 100.0) is None
@@ -441,7 +446,7 @@ def test_edit_target(rest):
     assert goalrules.edit_target(rest.base(), 90.0) is None
     back = goalrules.edit_target(rest.base(), 112.5)
     assert back.text == "Target volume 112.5 %"
-    assert back.state.target_ratio == pytest.approx(1.125)
+    assert back.state.goal.target_ratio == pytest.approx(1.125)
 
 
 def test_edit_target_rejects_an_infinite_target(rest):
@@ -473,7 +478,7 @@ def test_edit_reset(doc):
 def test_edit_reset_with_another_target_needs_a_solve(doc):
     commit(doc, goalrules.edit_target(doc.base(), 80))
     edit = noderules.edit_reset(doc.base())
-    assert edit.state.solved is False and edit.state.target_ratio == pytest.approx(0.8)
+    assert edit.state.solved is False and edit.state.goal.target_ratio == pytest.approx(0.8)
     assert not edit.state.fixed.any()
 
 
@@ -496,7 +501,7 @@ def test_edit_lattice_builds_a_new_lattice_at_rest(doc):
     np.testing.assert_allclose(st.nodes, st.lattice.rest_nodes)
     assert not st.moved.any() and not st.pinned.any()
     assert st.problem.scenario.moves == () and st.problem.scenario.pins == ()
-    assert st.target_ratio == pytest.approx(0.9)
+    assert st.goal.target_ratio == pytest.approx(0.9)
     assert st.solved is False and st.result is None  # ratio 0.9: to be solved
     # The model pyramid is reused, not loaded again.
     assert all(a is b for a, b in zip(st.surface.levels, old.surface.levels))
@@ -915,7 +920,7 @@ def test_save_and_read_round_trip(doc, tmp_path):
     np.testing.assert_allclose(new.nodes, st.nodes, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(new.moved, st.moved)
     np.testing.assert_array_equal(new.pinned & ~new.moved, st.pinned & ~st.moved)
-    assert new.target_ratio == st.target_ratio
+    assert new.goal.target_ratio == st.goal.target_ratio
     assert new.solved is False
 
 
@@ -1091,7 +1096,7 @@ def test_initial_state_reads_axis_pins_and_the_goal():
     assert np.flatnonzero(st.pinned).tolist() == sorted([full, z_only, xy])
     assert np.flatnonzero(st.axis_pinned).tolist() == sorted([z_only, xy])
     np.testing.assert_array_equal(st.fixed_axes, prob.fixed)  # what the core would hold
-    assert st.settings() == {
+    assert settings(st.goal) == {
         "preserve": "per-body",
         "keep_centroid": True,
         "anchor": "none",
@@ -1122,11 +1127,11 @@ def test_a_plain_state_has_the_default_goal(doc):
 )
 def test_each_goal_setting_is_an_undoable_edit_with_words(doc, rule, value, setting, new, words):
     before = doc.cell
-    old = getattr(doc.state, setting)
+    old = getattr(doc.state.goal, setting)
     edit = getattr(goalrules, rule)(doc.base(), value)
     assert_fresh(edit)
     assert edit.text == words
-    assert getattr(edit.state, setting) == new and getattr(edit.state.goal, setting) == new
+    assert getattr(edit.state.goal, setting) == new
     np.testing.assert_array_equal(edit.state.nodes, doc.base_nodes())
     assert not edit.state.same_edit(doc.state), "a setting makes another edit"
     after = commit(doc, edit)
@@ -1135,9 +1140,9 @@ def test_each_goal_setting_is_an_undoable_edit_with_words(doc, rule, value, sett
         "the same value again: nothing to do"
     )
     doc.set_cell(before)  # undo
-    assert getattr(doc.state, setting) == old
+    assert getattr(doc.state.goal, setting) == old
     doc.set_cell(after)  # redo
-    assert getattr(doc.state, setting) == new
+    assert getattr(doc.state.goal, setting) == new
     back = {"edit_anchor": True, "edit_preserve": "total"}.get(rule, not value)
     assert getattr(goalrules, rule)(doc.base(), back).text != words  # the words of the way back
 
@@ -1156,7 +1161,7 @@ def test_edit_target_beyond_the_reachable_range_says_so(rest):
         goalrules.edit_target(rest.base(), 2)
     with pytest.raises(IsochorError, match=r"0\.05\.\.20"):
         goalrules.edit_target(rest.base(), 2500)
-    assert goalrules.edit_target(rest.base(), 5).state.target_ratio == pytest.approx(0.05)
+    assert goalrules.edit_target(rest.base(), 5).state.goal.target_ratio == pytest.approx(0.05)
 
 
 def test_edit_pin_axes_pins_some_axes_only(doc):
@@ -1330,9 +1335,9 @@ def test_reset_and_rebuild_keep_the_goal_and_drop_axis_pins(doc):
     commit(doc, goalrules.edit_anchor(doc.base(), False))
     commit(doc, goalrules.edit_pin_axes(doc.base(), free_rows(doc)[:1], "z"))
     reset = noderules.edit_reset(doc.base()).state
-    assert not reset.pin_axes.any() and reset.anchor == "none"
+    assert not reset.pin_axes.any() and reset.goal.anchor == "none"
     rebuilt = latticerules.edit_lattice(doc.base(), (4, 3, 3)).state
-    assert not rebuilt.pin_axes.any() and rebuilt.anchor == "none"
+    assert not rebuilt.pin_axes.any() and rebuilt.goal.anchor == "none"
     assert rebuilt.problem.scenario.axis_pins == ()
 
 
@@ -1367,7 +1372,7 @@ def test_save_writes_version_2_with_axis_pins_and_the_goal(doc, tmp_path):
         again.pin_axes & ~again.moved[:, None], st.pin_axes & ~st.moved[:, None]
     )
     np.testing.assert_array_equal(again.moved, st.moved)
-    assert again.settings() == st.settings() and again.goal == st.goal
+    assert again.goal == st.goal
 
 
 def test_save_without_the_new_settings_writes_version_1_and_version_1_opens(doc, tmp_path):
@@ -1378,7 +1383,7 @@ def test_save_without_the_new_settings_writes_version_1_and_version_1_opens(doc,
     assert raw["version"] == 1 and "anchor" not in raw and "preserve" not in raw
     assert all(isinstance(p, list) for p in raw["pins"])
     opened = Document.open(path).state
-    assert opened.settings() == {
+    assert settings(opened.goal) == {
         "preserve": "total",
         "keep_centroid": False,
         "anchor": "far-side",

@@ -70,7 +70,7 @@ def volume_error(doc: Document, nodes: np.ndarray) -> tuple[float, float]:
     s = doc.surface
     faces = s.full.faces
     points = s.deform(nodes)
-    rel = signed_volume(points, faces) / s.rest_volume - doc.state.target_ratio
+    rel = signed_volume(points, faces) / s.rest_volume - doc.state.goal.target_ratio
     terms = (
         np.abs(face_volumes(points, faces)).sum()
         + np.abs(face_volumes(s.full.vertices, faces)).sum()

@@ -98,14 +98,14 @@ def test_go_to_key_loads_its_edit_solved_or_to_solve(doc):
     edit = commit(doc, timelinerules.edit_go_to_key(doc.base(), 0))
     assert edit.text == "Go to key 0"
     st = doc.state
-    assert not st.moved.any() and st.target_ratio == 1.0
+    assert not st.moved.any() and st.goal.target_ratio == 1.0
     assert st.solved and np.array_equal(st.nodes, lat.rest_nodes), "at rest: nothing to solve"
     assert st.timeline.key_frames == (0, 12), "the keys stay"
     # with the key's solve known the state is solved with it; without, it is to be solved
     fake = run_to_end(solve_sequence(sequence_problem(doc.state))).keys[1].result
     solved = timelinerules.edit_go_to_key(doc.base(), 12, solved=fake).state
     assert solved.solved and np.array_equal(solved.nodes, fake.nodes)
-    assert solved.moved[row] and solved.target_ratio == 0.95
+    assert solved.moved[row] and solved.goal.target_ratio == 0.95
     unsolved = timelinerules.edit_go_to_key(doc.base(), 12).state
     assert not unsolved.solved and unsolved.moved[row]
     assert np.allclose(unsolved.nodes[row], doc.state.timeline.key_at(12).edit.moves[0].to)
@@ -204,12 +204,14 @@ def test_frame_caches_follow_what_the_frames_depend_on(doc):
     commit(doc, goalrules.edit_keep_centroid(doc.base(), True))
     c = caches.get(doc.state)
     assert c is not b, "the goal does"
-    st = replace(doc.state, keep_centroid=False)
+    st = replace(doc.state, goal=replace(doc.state.goal, keep_centroid=False))
     assert caches.get(st) is b, "a kept cache is found again (undo)"
     assert sequence_signature(st) != sequence_signature(doc.state)
     commit(doc, timelinerules.edit_timeline_setting(doc.base(), "interpolation", "smooth"))
     caches.get(doc.state)
-    assert caches.get(replace(doc.state, keep_centroid=False)) is not b
+    assert (
+        caches.get(replace(doc.state, goal=replace(doc.state.goal, keep_centroid=False))) is not b
+    )
     assert pose_of(doc.state, 3) == Pose(3, doc.state.timeline.keys[1].edit, 1.0)
 
 

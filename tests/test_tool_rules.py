@@ -307,14 +307,14 @@ def test_handles_and_symmetry_are_saved_and_read_back(doc, tmp_path):
     path = tmp_path / "handles.json"
     doc.save(path)
     sc = Scenario.read(path)
-    assert sc.symmetry == "z" and len(sc.handles) == 1
+    assert sc.goal.symmetry == "z" and len(sc.handles) == 1
     assert np.allclose(sc.handles[0].at, at) and np.allclose(sc.handles[0].to, at + 0.1)
     again = Document.open(path).state
-    assert again.symmetry == "z" and again.handles == doc.state.handles
+    assert again.goal.symmetry == "z" and again.handles == doc.state.handles
     assert again.goal == doc.state.goal and not again.solved
     # reset takes the handles away with the moves and pins
     reset = noderules.edit_reset(doc.base())
-    assert reset.state.handles == () and reset.state.symmetry == "z"
+    assert reset.state.handles == () and reset.state.goal.symmetry == "z"
 
 
 def test_the_status_says_what_became_of_the_handles():
@@ -347,7 +347,7 @@ def test_symmetry_on_mirrors_the_selected_side_and_edits_follow(doc):
     assert edit.text == "Symmetry across x, the x-max side mirrored"
     st = edit.state
     m = st.mirror
-    assert st.symmetry == "x" and m.asymmetry(st.nodes) < 1e-12
+    assert st.goal.symmetry == "x" and m.asymmetry(st.nodes) < 1e-12
     assert st.pinned[b] and st.pinned[m.partner[b]] and not st.moved[a]
     # without a selection, the side with more fixed nodes (two pins against one move)
     doc.selection.select([])

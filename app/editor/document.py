@@ -301,10 +301,9 @@ class Document:
             moves=edit.moves,
             pins=edit.pins,
             axis_pins=edit.axis_pins,
-            target_volume_ratio=float(st.target_ratio),
+            goal=st.goal,
             handles=st.handles,
             timeline=st.timeline.core(),
-            **st.settings(),
         )
 
     def save(self, path: str | Path) -> None:

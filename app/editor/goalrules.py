@@ -11,13 +11,14 @@ words of its undo step), or None when nothing would change.
 from __future__ import annotations
 
 import contextlib
+from dataclasses import replace
 
 import numpy as np
 
 from ...core.errors import IsochorError
 from ...core.goal.anchor import held_face
-from ...core.goal.constraints import PRESERVE, SYMMETRIES, check_ratio
 from ...core.goal.handles import handle_rows
+from ...core.goal.spec import PRESERVE, SYMMETRIES, check_ratio
 from .edit import Edit, EditBase
 from .selection import face_name, ijk_table
 from .state import AXES, DocState, axes_words, plural
@@ -56,9 +57,10 @@ def edit_setting(base: EditBase, name: str, value) -> Edit | None:
     if value not in words:
         raise IsochorError(f"{name}: must be one of {', '.join(map(repr, words))}")
     st = base.state
-    if getattr(st, name) == value:
+    if getattr(st.goal, name) == value:
         return None
-    return Edit(st.edited(nodes=base.start(), **{name: value}), words[value])
+    goal = replace(st.goal, **{name: value})
+    return Edit(st.edited(nodes=base.start(), goal=goal), words[value])
 
 
 def edit_anchor(base: EditBase, on: bool) -> Edit | None:
@@ -89,10 +91,11 @@ def edit_target(base: EditBase, percent: float) -> Edit | None:
     no change). Raises :class:`IsochorError` beyond what a lattice can reach."""
     ratio = float(percent) / 100.0
     st = base.state
-    if not (np.isfinite(ratio) and ratio > 0) or ratio == st.target_ratio:
+    if not (np.isfinite(ratio) and ratio > 0) or ratio == st.goal.target_ratio:
         return None
     check_ratio(ratio, "target volume ratio")
-    return Edit(st.edited(nodes=base.start(), target_ratio=ratio), f"Target volume {percent:g} %")
+    goal = replace(st.goal, target_ratio=ratio)
+    return Edit(st.edited(nodes=base.start(), goal=goal), f"Target volume {percent:g} %")
 
 
 # -- symmetry --------------------------------------------------------------------------------
@@ -108,9 +111,9 @@ def edit_symmetry(base: EditBase, symmetry: str) -> Edit | None:
     if symmetry not in SYMMETRIES:
         raise IsochorError(f"symmetry: must be one of {', '.join(SYMMETRIES)}")
     st = base.state
-    if symmetry == st.symmetry:
+    if symmetry == st.goal.symmetry:
         return None
-    new = st.edited(nodes=base.start(), symmetry=symmetry)
+    new = st.edited(nodes=base.start(), goal=replace(st.goal, symmetry=symmetry))
     m = new.mirror
     if m is None:
         return Edit(new, "Symmetry off")
@@ -179,7 +182,7 @@ def held(st: DocState, *, preserve: bool, drag=None) -> tuple[np.ndarray, str]:
     off."""
     n = st.lattice.n_nodes
     none = np.zeros(n, dtype=bool), ""
-    if not preserve or st.anchor != "far-side":
+    if not preserve or st.goal.anchor != "far-side":
         return none
     if drag is not None:
         return _held(st, drag.nodes, drag.fixed(), drag.handles)

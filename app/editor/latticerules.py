@@ -41,7 +41,6 @@ def edit_lattice(base: EditBase, shape) -> Edit | None:
         problem = build(scenario, model=old.model)
     else:
         problem = base.problems.built(scenario, old.model)
-    ratio = st.target_ratio
     n = problem.surface.lattice.n_nodes
     # at rest: a cached problem may come from the opened scenario, whose moves and pins
     # name the nodes of the lattice the user has just left
@@ -50,11 +49,10 @@ def edit_lattice(base: EditBase, shape) -> Edit | None:
         problem.surface.lattice.rest_nodes,
         np.zeros(n, bool),
         np.zeros(n, bool),
-        ratio,
-        solved=ratio == 1.0 and not st.handles,
+        goal=st.goal,
+        solved=st.goal.target_ratio == 1.0 and not st.handles,
         handles=st.handles,
         timeline=replace(st.timeline, keys=()),
-        **st.settings(),
     )
     keys = len(st.timeline.keys)
     dropped = f", {plural(keys, 'key')} dropped" if keys else ""

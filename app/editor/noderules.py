@@ -70,7 +70,7 @@ def edit_reset(base: EditBase) -> Edit | None:
         nodes=rest,
         pin_axes=np.zeros((n, 3), bool),
         moved=np.zeros(n, bool),
-        solved=st.target_ratio == 1.0,
+        solved=st.goal.target_ratio == 1.0,
         handles=(),
     )
     return Edit(new, "Reset nodes")

@@ -2,8 +2,8 @@
 
 A :class:`DocState` is one complete state the user edits: the problem (model pyramid +
 lattice), the node positions, which node coordinates are pinned and which nodes were placed
-by the user, what the solve must hold (the target volume and the rest of the
-:class:`~isochor.core.goal.constraints.Goal`), and, once a solve ended on exactly this state, its
+by the user, what the solve must hold (its :class:`~isochor.core.goal.spec.Goal`: the
+target volume and the rest), and, once a solve ended on exactly this state, its
 :class:`SolveSummary`. A result's summary belongs to the state it solved: a state made by an
 edit has none, so the statistics of another state can never stay on screen.
 :class:`StateCell` is the mutable box undo works on; :func:`describe_status` is what the
@@ -16,17 +16,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ...core.goal.constraints import Goal
 from ...core.goal.handles import Handle, handles_sentence
+from ...core.goal.spec import Goal
 from ...core.goal.symmetry import Mirror
-from ...core.scenario.document import GOAL_DEFAULTS
 from ...core.scenario.problem import Problem
 from ...core.solve.records import BodyVolume
 from .timeline import TimelineState
 
 AXES = "xyz"
-#: the goal's settings a state holds besides the target: the scenario's, and the symmetry
-SETTINGS = (*GOAL_DEFAULTS, "symmetry")
 
 
 def _ro(a, dtype=None) -> np.ndarray:
@@ -146,9 +143,9 @@ class DocState:
     node pinned on z keeps its z and the solver moves it in x and y. Given an (n,) mask, a
     node is pinned on all three axes. A moved node is fixed on all three.
 
-    ``preserve``, ``keep_centroid``, ``anchor``, ``fold_guard`` and ``symmetry`` are the
-    goal's (see :class:`~isochor.core.goal.constraints.Goal`); ``preserve`` is "total" or
-    "per-body", not the window's "Preserve volume" switch (``Document.preserve``).
+    ``goal`` is what the solve of this state must hold (the target volume and the rest of
+    the :class:`~isochor.core.goal.spec.Goal`); its ``preserve`` is "total" or "per-body",
+    not the window's "Preserve volume" switch (``Document.preserve``).
     ``handles`` are the user's surface handles (their mirror images under symmetry are
     added by the solve).
     """
@@ -157,14 +154,9 @@ class DocState:
     nodes: np.ndarray  #: (n, 3) node positions
     pin_axes: np.ndarray  #: (n, 3) bool, the coordinates pinned by the user
     moved: np.ndarray  #: (n,) bool, placed by the user; fixed until unpinned
-    target_ratio: float = 1.0
+    goal: Goal = Goal()  #: what the solve of this state must hold
     solved: bool = False  #: the solver ran to its end on exactly these nodes and flags
     result: SolveSummary | None = None  #: the summary of that solve (None: at rest)
-    preserve: str = "total"
-    keep_centroid: bool = False
-    anchor: str = "far-side"
-    fold_guard: bool = True
-    symmetry: str = "none"
     handles: tuple[Handle, ...] = ()
     timeline: TimelineState = TimelineState()  #: the keys and the timeline's settings
 
@@ -198,26 +190,9 @@ class DocState:
         return _frozen(self.pin_axes | self.moved[:, None])
 
     @property
-    def goal(self) -> Goal:
-        """What the solve of this state must hold."""
-        return Goal(
-            self.target_ratio,
-            self.preserve,
-            self.keep_centroid,
-            self.anchor,
-            self.fold_guard,
-            self.symmetry,
-        )
-
-    def settings(self) -> dict:
-        """The goal's settings besides the target (the symmetry too), as keyword
-        arguments."""
-        return {k: getattr(self, k) for k in SETTINGS}
-
-    @property
     def mirror(self) -> Mirror | None:
         """The symmetry's mirror (None with symmetry off)."""
-        return Mirror.of(self.lattice, self.symmetry)
+        return Mirror.of(self.lattice, self.goal.symmetry)
 
     def mirrored(self, rows) -> DocState:
         """With symmetry on: the positions, pins and moved flags of ``rows`` copied onto
@@ -280,8 +255,7 @@ class DocState:
         """True when both describe the same edit (nodes, flags, goal, problem)."""
         return (
             self.problem is other.problem
-            and self.target_ratio == other.target_ratio
-            and self.settings() == other.settings()
+            and self.goal == other.goal
             and self.handles == other.handles
             and np.array_equal(self.nodes, other.nodes)
             and np.array_equal(self.pin_axes, other.pin_axes)
@@ -314,18 +288,16 @@ def initial_state(problem: Problem) -> DocState:
     for p, axes in sc.axis_pins:
         pins[lat.index(*p), [AXES.index(a) for a in axes]] = True
     # Nothing moved, no handle and the volume kept: the rest lattice is already the answer.
-    at_rest = not moved.any() and not sc.handles and sc.target_volume_ratio == 1.0
-    settings = {k: getattr(sc, k) for k in SETTINGS}
+    at_rest = not moved.any() and not sc.handles and sc.goal.target_ratio == 1.0
     return DocState(
         problem,
         problem.nodes,
         pins,
         moved,
-        sc.target_volume_ratio,
+        goal=sc.goal,
         solved=at_rest,
         handles=sc.handles,
         timeline=TimelineState.of(sc),
-        **settings,
     )
 
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ...core.errors import IsochorError
+from ...core.goal.spec import Goal
 from ...core.scenario.edits import Edit, Move
 from ...core.scenario.poses import INTERPOLATIONS, MAX_FRAMES, Pose, Timeline
 from ...core.scenario.problem import Problem
@@ -61,7 +62,7 @@ class TimelineState:
         tl = scenario.timeline
         if tl is None:
             return cls()
-        ratio = scenario.target_volume_ratio
+        ratio = scenario.goal.target_ratio
         keys = tuple(
             p if p.target_ratio is not None else replace(p, target_ratio=ratio) for p in tl.poses
         )
@@ -144,7 +145,7 @@ def state_edit(st) -> Edit:
 
 def pose_of(st, frame: int) -> Pose:
     """The working edit of document state ``st`` as the key at ``frame``."""
-    return Pose(int(frame), state_edit(st), float(st.target_ratio))
+    return Pose(int(frame), state_edit(st), float(st.goal.target_ratio))
 
 
 def same_pose(a: Pose, b: Pose, lattice) -> bool:
@@ -176,15 +177,20 @@ def pose_flags(pose: Pose, lattice) -> tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 # -- solving the frames ---------------------------------------------------------------------------
+def sequence_goal(st) -> Goal:
+    """The goal the frames of document state ``st`` are solved with: the state's, with the
+    scenario's target (every key holds its own target; the working edit's is not theirs)."""
+    return replace(st.goal, target_ratio=st.problem.scenario.goal.target_ratio)
+
+
 def sequence_signature(st) -> tuple | None:
     """What the solved frames of document state ``st`` depend on: the problem, the keys, the
-    frame range, the interpolation and the goal's settings (not the rate, not the working
-    edit). None without keys."""
+    frame range, the interpolation and the goal's settings (:func:`sequence_goal`; not the
+    rate, not the working edit). None without keys."""
     tl = st.timeline
     if not tl.keys:
         return None
-    settings = tuple(sorted(st.settings().items()))
-    return (id(st.problem), tl.keys, tl.start, tl.end, tl.interpolation, settings)
+    return (id(st.problem), tl.keys, tl.start, tl.end, tl.interpolation, sequence_goal(st))
 
 
 def sequence_problem(st) -> Problem:
@@ -192,7 +198,7 @@ def sequence_problem(st) -> Problem:
     ``st``: its scenario with the timeline and the goal's settings, the first key started
     from the rest lattice (so the frames do not depend on the working edit)."""
     problem = st.problem
-    sc = problem.scenario.with_(timeline=st.timeline.core(), **st.settings())
+    sc = problem.scenario.with_(timeline=st.timeline.core(), goal=sequence_goal(st))
     lattice = problem.surface.lattice
     fixed = np.zeros((lattice.n_nodes, 3), dtype=bool)
     return replace(problem, scenario=sc, nodes=lattice.rest_nodes, fixed=fixed)

@@ -83,11 +83,11 @@ def posed_state(st: DocState, pose, base: np.ndarray, solved=None) -> DocState:
     """``st`` with key ``pose``'s edit as its working edit (its timeline and goal kept)."""
     lattice = st.lattice
     nodes, pins, moved = pose_flags(pose, lattice)
-    ratio = st.target_ratio if pose.target_ratio is None else pose.target_ratio
+    ratio = st.goal.target_ratio if pose.target_ratio is None else pose.target_ratio
     changes = {
         "pin_axes": pins,
         "moved": moved,
-        "target_ratio": ratio,
+        "goal": replace(st.goal, target_ratio=ratio),
         "handles": pose.edit.handles,
     }
     if solved is not None:

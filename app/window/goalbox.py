@@ -115,21 +115,22 @@ class GoalBox(QGroupBox):
         lay.addWidget(self.held_note)
         lay.addWidget(self.stats)
 
-    def show_goal(self, state, bodies: int) -> None:
-        """Show ``state``'s goal settings; "Each body" only for a model of several bodies."""
+    def show_goal(self, goal, bodies: int) -> None:
+        """Show the settings of ``goal`` (a :class:`isochor.core.goal.spec.Goal`); "Each
+        body" only for a model of several bodies."""
         for box, on in (
-            (self.anchor_box, state.anchor == "far-side"),
-            (self.centroid_box, state.keep_centroid),
-            (self.fold_box, state.fold_guard),
+            (self.anchor_box, goal.anchor == "far-side"),
+            (self.centroid_box, goal.keep_centroid),
+            (self.fold_box, goal.fold_guard),
         ):
             box.blockSignals(True)
             box.setChecked(bool(on))
             box.blockSignals(False)
         self.volume_choice.blockSignals(True)
-        self.volume_choice.setCurrentIndex(self.volume_choice.findData(state.preserve))
+        self.volume_choice.setCurrentIndex(self.volume_choice.findData(goal.preserve))
         self.volume_choice.blockSignals(False)
         several = bodies > 1
-        self.volume_choice.setEnabled(several or state.preserve == "per-body")
+        self.volume_choice.setEnabled(several or goal.preserve == "per-body")
         tip = VOLUME_TIP if several else VOLUME_TIP + " This model is one body."
         self.volume_choice.setToolTip(tip)
 

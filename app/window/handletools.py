@@ -116,7 +116,7 @@ class HandleTools:
         r = st.result if st.solved else None
         results = r.handles if r is not None and len(r.handles) == len(st.handles) else None
         win.panel.handles.show_handles(st.handles, results, win.doc.selection.handle)
-        win.panel.goal.show_symmetry(st.symmetry)
+        win.panel.goal.show_symmetry(st.goal.symmetry)
         if win.viewport.scene.built:
             win.viewport.scene.set_mirror(st.mirror)
         win.action_set.remove_handle.setEnabled(win.doc.selection.handle is not None)

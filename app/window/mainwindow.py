@@ -251,7 +251,7 @@ class MainWindow(QMainWindow):
     def _state_changed(self) -> None:
         st = self.state
         self.readout.show_state()
-        self.panel.show_target(st.target_ratio * 100)
+        self.panel.show_target(st.goal.target_ratio * 100)
         self.handle_tools.show()
         self._selection_changed(repaint=False)  # (the state's frame follows: it repaints)
         self._status_changed()
@@ -324,7 +324,7 @@ class MainWindow(QMainWindow):
         try:
             self.commit_edit(goalrules.edit_target(self.doc.base(), percent))
         except IsochorError as exc:
-            self.panel.show_target(self.state.target_ratio * 100)
+            self.panel.show_target(self.state.goal.target_ratio * 100)
             self.error("Cannot set the target volume", str(exc))
 
     def rebuild_lattice(self, shape) -> None:

@@ -21,7 +21,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from ...core.goal.constraints import RATIO_RANGE
+from ...core.goal.spec import RATIO_RANGE
 from ...core.lattice import MAX_NODES, MIN_NODES
 from ..editor.state import axes_words
 from ..view import style

@@ -67,18 +67,19 @@ class Readout:
         goal's settings and notes."""
         win = self.win
         st = win.state
-        win.panel.goal.show_goal(st, st.surface.bodies.count)
+        goal = st.goal
+        win.panel.goal.show_goal(goal, st.surface.bodies.count)
         acts = win.action_set
         for action, on in (
-            (acts.anchor, st.anchor == "far-side"),
-            (acts.centroid, st.keep_centroid),
-            (acts.per_body, st.preserve == "per-body"),
-            (acts.fold_guard, st.fold_guard),
+            (acts.anchor, goal.anchor == "far-side"),
+            (acts.centroid, goal.keep_centroid),
+            (acts.per_body, goal.preserve == "per-body"),
+            (acts.fold_guard, goal.fold_guard),
         ):
             action.blockSignals(True)
             action.setChecked(bool(on))
             action.blockSignals(False)
-        acts.per_body.setEnabled(st.surface.bodies.count > 1 or st.preserve == "per-body")
+        acts.per_body.setEnabled(st.surface.bodies.count > 1 or goal.preserve == "per-body")
         r = st.result if st.solved else None
         folded = r.folded_vertices if r is not None and win.doc.preserve else None
         win.viewport.scene.set_folds(folded)
@@ -130,7 +131,7 @@ class Readout:
             return
         if np.array_equal(np.asarray(nodes), st.nodes):
             rest = st.surface.rest_volume
-            volume = rest * st.target_ratio + r.rel_volume_error * abs(rest)
+            volume = rest * st.goal.target_ratio + r.rel_volume_error * abs(rest)
             win.viewport.scene.model.know_volume(nodes, volume)
 
     def frame(self, record) -> None:
@@ -140,13 +141,13 @@ class Readout:
         scene = win.viewport.scene
         pct = 100 * scene.volume / st.surface.rest_volume
         if scene.volume_estimated:  # a big model's proxy is drawn: never the full mesh's
-            text = f"Volume ≈ {pct:.2f} % (preview; target {100 * st.target_ratio:.4g} %)"
+            text = f"Volume ≈ {pct:.2f} % (preview; target {100 * st.goal.target_ratio:.4g} %)"
             tip = (
                 "Estimated on the coarser version of the model drawn while it moves; "
                 "measured on the full mesh when it stops."
             )
         else:
-            text = f"Volume {pct:.2f} % (target {100 * st.target_ratio:.4g} %)"
+            text = f"Volume {pct:.2f} % (target {100 * st.goal.target_ratio:.4g} %)"
             tip = "The volume of the full mesh as drawn."
         self.volume_label.setText(text)
         self.volume_label.setToolTip(tip)

@@ -35,10 +35,7 @@ from ..io.repair import body_labels, compact
 from ..lattice import Lattice, PointBasis
 from ..mesh import TriMesh
 from ..volume import MomentOperator, VolumeOperator, face_volumes
-
-# Goal is declared in .spec; the other names are re-exported, transitionally, for app/
-# (app/editor, app/window), which imports them from here until it imports them from .spec.
-from .spec import ANCHORS, PRESERVE, RATIO_RANGE, SYMMETRIES, Goal, check_ratio  # noqa: F401
+from .spec import Goal
 
 #: the centroid is held to this fraction of the volume tolerance, in object sizes
 CENTROID_SCALE = 0.1

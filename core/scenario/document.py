@@ -81,9 +81,6 @@ VERSIONS = (1, 2, 3)
 V2_KEYS = tuple(f.key for f in GOAL_FIELDS if f.version == 2)
 #: the keys version 3 added
 V3_KEYS = ("handles", *(f.key for f in GOAL_FIELDS if f.version == 3), "poses", "timeline")
-#: Transitional, for ``app/editor`` until its state holds a :class:`Goal`: the version 2
-#: keys with their defaults (derived from the goal's fields; nothing in core uses it)
-GOAL_DEFAULTS = {f.key: f.default for f in GOAL_FIELDS if f.version == 2}
 
 #: a scenario is a few kilobytes; anything larger than this is not one
 MAX_SCENARIO_BYTES = 16 * 2**20
@@ -316,23 +313,5 @@ class Scenario:
         return replace(checked, model=self.model, base_dir=self.base_dir, source=self.source)
 
     def with_(self, **changes) -> Scenario:
-        """This scenario with some fields changed. Transitional, for ``app/editor`` until
-        it holds a :class:`Goal`: a goal field may also be given by its scenario key
-        (``target_volume_ratio=0.9``), and is changed in :attr:`goal`."""
-        by_key = {f.name: changes.pop(f.key) for f in GOAL_FIELDS if f.key in changes}
-        if by_key:
-            changes["goal"] = changes.get("goal", self.goal).with_(**by_key)
+        """This scenario with some fields changed (the goal as a whole: ``goal=``)."""
         return replace(self, **changes)
-
-
-def _read_by_key(name: str):
-    return property(
-        lambda scenario: getattr(scenario.goal, name),
-        doc=f"``goal.{name}``, read by its scenario key (transitional, for app/editor)",
-    )
-
-
-# Transitional, for app/editor until it reads ``scenario.goal``: each goal field read by its
-# scenario key (``scenario.target_volume_ratio``); derived from the goal's fields.
-for _field in GOAL_FIELDS:
-    setattr(Scenario, _field.key, _read_by_key(_field.name))

@@ -120,9 +120,9 @@ def test_a_drag_of_the_big_armadillo_draws_a_proxy_and_ends_on_the_headless_solv
     assert np.array_equal(vp.nodes, st.nodes)
     assert np.allclose(vp.scene.model_points(), surface.deform(st.nodes), atol=1e-9)
     assert not vp.scene.volume_estimated and "≈" not in win.readout.volume_label.text()
-    measured = surface.rest_volume * (st.target_ratio + st.result.rel_volume_error)
+    measured = surface.rest_volume * (st.goal.target_ratio + st.result.rel_volume_error)
     assert vp.model_volume == pytest.approx(measured, rel=1e-12)
-    assert vp.model_volume / surface.rest_volume == pytest.approx(st.target_ratio, abs=1e-3)
+    assert vp.model_volume / surface.rest_volume == pytest.approx(st.goal.target_ratio, abs=1e-3)
     nodes, fixed, goal = win.session.last_solve_input
     assert fixed[row].all()
     assert win.session.last_solve_near, "the solve on release starts near the last frame"

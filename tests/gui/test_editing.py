@@ -156,7 +156,7 @@ def test_target_volume_and_lattice_rebuild_are_undoable(qtbot, window):
     win = window
     nodes0 = np.array(win.state.nodes)
     win.panel.target.setValue(80.0)
-    assert win.state.target_ratio == pytest.approx(0.8)
+    assert win.state.goal.target_ratio == pytest.approx(0.8)
     wait_idle(qtbot, win)
     assert win.state.converged
     assert win.viewport.model_volume / win.state.surface.rest_volume == pytest.approx(0.8, abs=1e-3)
@@ -170,7 +170,7 @@ def test_target_volume_and_lattice_rebuild_are_undoable(qtbot, window):
     assert len(win.viewport.nodes) == 24
     assert not win.state.fixed.any()
     wait_idle(qtbot, win)
-    assert win.state.target_ratio == pytest.approx(0.8)
+    assert win.state.goal.target_ratio == pytest.approx(0.8)
     assert win.viewport.model_volume / win.state.surface.rest_volume == pytest.approx(0.8, abs=1e-3)
 
     win.undo_stack.undo()  # the rebuild
@@ -178,7 +178,7 @@ def test_target_volume_and_lattice_rebuild_are_undoable(qtbot, window):
     assert win.state.lattice.shape == (3, 3, 3) and len(win.viewport.nodes) == 27
     assert [s.value() for s in win.panel.shape] == [3, 3, 3]
     win.undo_stack.undo()  # the target
-    assert win.state.target_ratio == 1.0 and np.array_equal(win.state.nodes, nodes0)
+    assert win.state.goal.target_ratio == 1.0 and np.array_equal(win.state.nodes, nodes0)
     assert win.panel.target.value() == 100.0
     win.undo_stack.redo()
     win.undo_stack.redo()
@@ -294,7 +294,7 @@ def test_shortcut_keys_reach_the_actions(qtbot, window):
     win.panel.target.lineEdit().selectAll()
     QTest.keyClicks(win.panel.target, "70")
     QTest.keyClick(win.panel.target, Qt.Key.Key_Return)
-    assert win.state.target_ratio == pytest.approx(0.7)
+    assert win.state.goal.target_ratio == pytest.approx(0.7)
 
 
 def test_context_menu_pins_the_node_under_the_cursor(qtbot, window, monkeypatch):

@@ -158,7 +158,7 @@ def test_a_one_node_drag_holds_the_far_face_until_hold_far_side_is_unticked(qtbo
 
     # untick Hold far side: one undo step, and the far face moves with the next drag
     click_box(win, win.panel.goal.anchor_box)
-    assert win.state.anchor == "none" and win.state.goal.anchor == "none"
+    assert win.state.goal.anchor == "none"
     assert win.undo_stack.undoText() == "Hold far side off"
     assert not win.action_set.anchor.isChecked()
     wait_idle(qtbot, win)
@@ -242,7 +242,7 @@ def test_the_constraint_switches_are_undoable_edits(qtbot, window):
         assert box.toolTip() and box.focusPolicy() & Qt.FocusPolicy.TabFocus
 
     click_box(win, g.centroid_box)
-    assert win.state.keep_centroid and win.action_set.centroid.isChecked()
+    assert win.state.goal.keep_centroid and win.action_set.centroid.isChecked()
     assert win.undo_stack.undoText() == "Keep centre of mass"
     assert win.is_solving(), "a new goal is solved"
     wait_idle(qtbot, win)
@@ -252,23 +252,23 @@ def test_the_constraint_switches_are_undoable_edits(qtbot, window):
     # the keyboard: Space on the focused Fold guard box
     g.fold_box.setFocus()
     QTest.keyClick(g.fold_box, Qt.Key.Key_Space)
-    assert not win.state.fold_guard and not win.action_set.fold_guard.isChecked()
+    assert not win.state.goal.fold_guard and not win.action_set.fold_guard.isChecked()
     assert win.undo_stack.undoText() == "Fold guard off"
     # the Solve menu's action does the same as the box
     win.action_set.anchor.trigger()
-    assert win.state.anchor == "none" and not g.anchor_box.isChecked()
+    assert win.state.goal.anchor == "none" and not g.anchor_box.isChecked()
     assert win.undo_stack.undoText() == "Hold far side off"
     wait_idle(qtbot, win)
 
     for _ in range(3):
         undo_key(win)
     st = win.state
-    assert (st.anchor, st.fold_guard, st.keep_centroid) == ("far-side", True, False)
+    assert (st.goal.anchor, st.goal.fold_guard, st.goal.keep_centroid) == ("far-side", True, False)
     assert g.anchor_box.isChecked() and g.fold_box.isChecked() and not g.centroid_box.isChecked()
     assert win.action_set.anchor.isChecked() and not win.action_set.centroid.isChecked()
     assert st.converged and not g.stats.isVisible(), "back on the example's solved state"
     undo_key(win, redo=True)
-    assert win.state.keep_centroid and g.centroid_box.isChecked()
+    assert win.state.goal.keep_centroid and g.centroid_box.isChecked()
     wait_idle(qtbot, win)
 
 
@@ -294,7 +294,7 @@ def test_a_node_pinned_on_z_keeps_its_z_and_moves_in_x_and_y(qtbot, window, monk
 
     before = np.array(win.state.nodes[row])
     type_into(win.panel.target, "80")
-    assert win.state.target_ratio == pytest.approx(0.8)
+    assert win.state.goal.target_ratio == pytest.approx(0.8)
     wait_idle(qtbot, win)
     st = win.state
     assert st.converged
@@ -394,12 +394,12 @@ def test_two_bodies_show_their_volumes_and_each_body_keeps_its_own(qtbot, window
             False,
         )
         QApplication.sendEvent(g.volume_choice, wheel)
-    assert win.state.preserve == "total" and win.undo_stack.count() == steps
+    assert win.state.goal.preserve == "total" and win.undo_stack.count() == steps
 
     # Each body, chosen with the keyboard
     g.volume_choice.setFocus()
     QTest.keyClick(g.volume_choice, Qt.Key.Key_Down)
-    assert win.state.preserve == "per-body" and win.action_set.per_body.isChecked()
+    assert win.state.goal.preserve == "per-body" and win.action_set.per_body.isChecked()
     assert win.undo_stack.undoText() == "Preserve each body"
     wait_idle(qtbot, win)
     st = win.state
@@ -410,5 +410,5 @@ def test_two_bodies_show_their_volumes_and_each_body_keeps_its_own(qtbot, window
     assert f"body 1 {shares[0]:.2f} %" in text and f"body 2 {shares[1]:.2f} %" in text
     save_shot(win, "goal_each_body", show=g.stats)
     undo_key(win)
-    assert win.state.preserve == "total" and g.volume_choice.currentText() == "Total"
+    assert win.state.goal.preserve == "total" and g.volume_choice.currentText() == "Total"
     wait_idle(qtbot, win)
