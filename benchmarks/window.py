@@ -344,7 +344,7 @@ def one_close(path: Path) -> tuple[float, bool]:
         run_until(lambda: win.viewport.paints > 0 and settled(win), 120)
         row = drag_node(win)
         vp = win.viewport
-        start = vp.projection().project(vp.nodes)[0][row]
+        start = vp.camera_control.projection().project(vp.nodes)[0][row]
         moves = drag_path(start, 0.15)
         left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
 
