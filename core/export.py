@@ -27,6 +27,7 @@ from .errors import IsochorError
 from .io.atomic import check_outputs, write_outputs
 from .io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
 from .io.meshio import mesh_bytes
+from .io.plyheader import PlyHeader
 from .mesh import TriMesh
 from .scenario.problem import Problem
 
@@ -189,8 +190,12 @@ def _lost(problem: Problem, out: Path) -> list[str]:
     if suffix == ".obj":
         held = [what for what, pattern in _OBJ_HOLDS.items() if pattern.search(data)]
     elif suffix == ".ply":
-        header = data[: data.find(b"end_header")].decode("ascii", "replace")
-        props = re.findall(r"^property\s+(?:list\s+\S+\s+)?\S+\s+(\S+)", header, re.M)
+        try:
+            header = PlyHeader.parse(data, source.name)
+        except IsochorError:  # (the model was read, so its header is not in doubt)
+            header = None
+        elements = header.elements if header is not None else ()
+        props = [p.name for element in elements for p in element.properties]
         extra = [p for p in props if p not in ("x", "y", "z", "vertex_indices", "vertex_index")]
         held = [f"properties ({', '.join(extra)})"] if extra else []
     elif suffix in GLTF_FORMATS:

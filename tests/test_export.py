@@ -90,6 +90,10 @@ def test_ply_export_keeps_extra_properties(tmp_path):
     assert body[ball.n_vertices :] == faces.splitlines()
     assert trimesh_volume(tmp_path / "out.ply") == pytest.approx(report["volume_target"], rel=1e-3)
 
+    # another format: the note names the properties the PLY held (read by the one parser)
+    report = solve(tmp_path, squash_scenario(tmp_path / "ball.ply"), "out.obj")
+    assert [n for n in report["export_notes"] if "properties (s, confidence)" in n], report
+
 
 def test_glb_round_trip_keeps_vertex_count_and_uvs_and_can_be_a_morph_target(tmp_path):
     spot = trimesh.load(str(model("spot_triangulated.obj")), process=False)
