@@ -113,6 +113,16 @@ class Session:
     True
     """
 
+    # The goal's attributes, by their API keywords: set in __init__ from the declarations of
+    # isochor.core.goal.spec (defaults, checks); annotated here so that a caller's type
+    # checker knows them (tests/test_api.py keeps the two lists equal).
+    target: float
+    preserve: str
+    keep_centroid: bool
+    anchor: str
+    fold_guard: bool
+    symmetry: str
+
     def __init__(
         self,
         source: Any,

@@ -267,3 +267,22 @@ def test_a_session_saves_version_2_only_when_it_uses_it(tmp_path):
     session.target = 0.01
     with pytest.raises(isochor.IsochorError, match=r"0\.05\.\.20"):
         session.solve()
+
+
+def test_the_sessions_goal_attributes_are_the_goals_keywords_with_their_types():
+    """The goal is declared once (isochor.core.goal.spec); the Session's annotations, which
+    tell a caller's type checker its goal attributes, name exactly those keywords, typed as
+    the declared defaults are, and a session sets each to the declared default."""
+    from typing import get_type_hints
+
+    from isochor.core.goal.spec import GOAL_FIELDS
+
+    hints = get_type_hints(isochor.Session)
+    assert {f.keyword: f.kind for f in GOAL_FIELDS} == {
+        name: hints[name] for name in (f.keyword for f in GOAL_FIELDS)
+    }
+    ball = icosphere(2)
+    session = isochor.Session((ball.vertices, ball.faces), lattice=(3, 3, 3))
+    assert {f.keyword: getattr(session, f.keyword) for f in GOAL_FIELDS} == {
+        f.keyword: f.default for f in GOAL_FIELDS
+    }
