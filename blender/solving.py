@@ -82,7 +82,7 @@ class LiveSolver:
         t0, record = time.perf_counter(), None
         free = ~blender_order(self.rig.pinned, self.rig.shape)
         try:
-            while time.perf_counter() - t0 < budget:
+            while record is None or time.perf_counter() - t0 < budget:  # a step at least
                 record = next(self.steps)
         except StopIteration as done:
             self.steps, self.last = None, done.value

@@ -195,17 +195,18 @@ def test_bad_input_is_one_line_and_changes_nothing(addon):
 
 
 def pin_and_drag(lat, lift: float) -> np.ndarray:
-    """Pins the bottom layer (w = 0) and one top-corner point, moved up by ``lift`` of the
-    lattice's height; returns the pinned mask (Blender's order)."""
+    """Pins the bottom two layers (w = 0, 1) and the top layer's middle points, moved up by
+    ``lift`` of the lattice's height; returns the pinned mask (Blender's order)."""
     data = lat.data
-    pu, pv = data.points_u, data.points_v
-    pinned = np.zeros(len(data.points), bool)
-    pinned[: pu * pv] = True
-    corner = len(data.points) - 1
-    pinned[corner] = True
+    pu, pv, pw = data.points_u, data.points_v, data.points_w
+    w, v, u = np.unravel_index(np.arange(len(data.points)), (pw, pv, pu))
+    middle = (np.abs(u - (pu - 1) / 2) <= 0.5) & (np.abs(v - (pv - 1) / 2) <= 0.5)
+    dragged = (w == pw - 1) & middle
+    pinned = (w <= 1) | dragged
     data.points.foreach_set("select", pinned)
     height = data.points[-1].co[2] - data.points[0].co[2]
-    data.points[corner].co_deform.z += lift * height
+    for i in np.flatnonzero(dragged):
+        data.points[int(i)].co_deform.z += lift * height
     return pinned
 
 
@@ -247,11 +248,16 @@ def test_a_target_ratio(addon):
 
 @needs_bases
 def test_undo_restores_the_points(addon):
+    """The solve is one undo step: Blender pushes it after an operator with "UNDO" (in the
+    UI; a background session does not, so the test pushes it as the UI would)."""
+    for op in ("preserve_volume", "bake", "live"):
+        assert "UNDO" in getattr(bpy.types, f"ISOCHOR_OT_{op}").bl_options
     ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=2)
     pin_and_drag(lat, 0.3)
     bpy.ops.ed.undo_push(message="drag")
     before = points(lat)
     assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    bpy.ops.ed.undo_push(message=bpy.types.ISOCHOR_OT_preserve_volume.bl_label)
     assert not np.array_equal(points(bpy.data.objects["cage"]), before)
     bpy.ops.ed.undo()
     np.testing.assert_array_equal(points(bpy.data.objects["cage"]), before)
@@ -263,14 +269,14 @@ def test_live_solves_coarse_levels_first_and_follows_a_moved_pin(addon):
     from blender.solving import LiveSolver, Settings
 
     ob, lat = rigged((4, 4, 4), "KEY_BSPLINE")
-    pin_and_drag(lat, 0.2)
+    pinned = pin_and_drag(lat, 0.2)
     live = LiveSolver(Target.of(ob), Settings())
     writes = []
     while live.tick(budget=0.0):  # one step a tick: every level's nodes written
         writes.append(points(lat).copy())
     assert live.solves == 1 and live.last.converged and len(writes) > 1
     assert abs(volume_ratio(addon, ob) - 1) <= TOL_VOLUME + F32_VOLUME
-    lat.data.points[-1].co_deform.z += 0.1  # the user drags the pin further
+    lat.data.points[int(np.flatnonzero(pinned)[-1])].co_deform.z += 0.1  # drags a pin on
     assert live.tick(budget=10.0) is False and live.solves == 2
     assert abs(volume_ratio(addon, ob) - 1) <= TOL_VOLUME + F32_VOLUME
     assert live.tick() is False and live.solves == 2  # nothing moved: no solve
