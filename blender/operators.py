@@ -22,6 +22,12 @@ def _errors():
     return (RigError, IsochorError)
 
 
+def _line(exc: Exception) -> str:
+    """The one line for the report area."""
+    line = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    return line if line.startswith("Isochor:") else f"Isochor: {line}"
+
+
 def measure(context, target: Target) -> None:
     props = context.scene.isochor
     rest = target.rest_volume()
@@ -41,7 +47,7 @@ class ISOCHOR_OT_preserve_volume(bpy.types.Operator):
             target = Target.of(context.active_object)
             error = solve_once(target, _settings(context))
         except _errors() as exc:
-            self.report({"ERROR"}, str(exc).splitlines()[0])
+            self.report({"ERROR"}, _line(exc))
             return {"CANCELLED"}
         measure(context, target)
         self.report({"INFO"}, f"Isochor: volume kept within {abs(error):.1e}")
@@ -58,7 +64,7 @@ class ISOCHOR_OT_measure(bpy.types.Operator):
         try:
             measure(context, Target.of(context.active_object))
         except _errors() as exc:
-            self.report({"ERROR"}, str(exc).splitlines()[0])
+            self.report({"ERROR"}, _line(exc))
             return {"CANCELLED"}
         return {"FINISHED"}
 
@@ -76,7 +82,7 @@ class ISOCHOR_OT_bake(bpy.types.Operator):
             target = Target.of(context.active_object)
             errors = bake(target, _settings(context), props.frame_start, props.frame_end)
         except _errors() as exc:
-            self.report({"ERROR"}, str(exc).splitlines()[0])
+            self.report({"ERROR"}, _line(exc))
             return {"CANCELLED"}
         measure(context, target)
         worst = max(abs(e) for e in errors)
@@ -102,7 +108,7 @@ class ISOCHOR_OT_live(bpy.types.Operator):
         try:
             self._solver = LiveSolver(Target.of(context.active_object), _settings(context))
         except _errors() as exc:
-            self.report({"ERROR"}, str(exc).splitlines()[0])
+            self.report({"ERROR"}, _line(exc))
             return {"CANCELLED"}
         props.live = True
         self._timer = context.window_manager.event_timer_add(0.04, window=context.window)
@@ -117,7 +123,7 @@ class ISOCHOR_OT_live(bpy.types.Operator):
             try:
                 running = self._solver.tick()
             except _errors() as exc:
-                self.report({"ERROR"}, str(exc).splitlines()[0])
+                self.report({"ERROR"}, _line(exc))
                 return self._end(context)
             if not running and self._solver.last is not None:
                 measure(context, self._solver.target)

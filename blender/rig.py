@@ -80,6 +80,22 @@ class Rig:
         self.load(session)
         return session
 
+    def shown(self, session, nodes: np.ndarray) -> np.ndarray:
+        """The points to write for solved ``nodes``: with Blender's "outside" option the
+        inner ones on the faces' interpolation (as Blender keeps them), else the nodes."""
+        return session.lattice.effective_nodes(nodes) if self.outside else nodes
+
+    def written(self) -> np.ndarray:
+        """(n,) Blender's order: the points a solve writes: the free ones, and with
+        "outside" the inner ones too (they follow the faces)."""
+        mask = ~self.pinned
+        if self.outside:
+            i, j, k = np.unravel_index(np.arange(len(mask)), self.shape)
+            l, m, n = self.shape
+            inner = (i > 0) & (i < l - 1) & (j > 0) & (j < m - 1) & (k > 0) & (k < n - 1)
+            mask = mask | inner
+        return blender_order(mask, self.shape)
+
     def load(self, session) -> None:
         """The session's nodes set to this rig's points, its fixed nodes to the pins."""
         np.copyto(session.nodes, self.nodes)

@@ -78,8 +78,6 @@ class Target:
             raise RigError(
                 f"Isochor: lattice {lat.name!r} has shape keys or modifiers; apply or remove them"
             )
-        if lat.parent is not None and lat.parent == self.mesh:
-            raise RigError(f"Isochor: lattice {lat.name!r} is parented to the mesh it deforms")
         shape = (data.points_u, data.points_v, data.points_w)
         if min(shape) < 2:
             raise RigError(

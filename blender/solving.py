@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from .rig import blender_order, isochor_order
+from .rig import isochor_order
 from .scene import BAKED, RigError, Target
 
 
@@ -42,7 +42,7 @@ def solve_once(target: Target, settings: Settings) -> float:
     failure = _failure(result)
     if failure:
         raise RigError(failure)
-    target.write(result.nodes, ~blender_order(rig.pinned, rig.shape))
+    target.write(rig.shown(session, result.nodes), rig.written())
     return float(result.rel_volume_error)
 
 
@@ -80,7 +80,7 @@ class LiveSolver:
         if self.steps is None:
             return False
         t0, record = time.perf_counter(), None
-        free = ~blender_order(self.rig.pinned, self.rig.shape)
+        free = self.rig.written()
         try:
             while record is None or time.perf_counter() - t0 < budget:  # a step at least
                 record = next(self.steps)
@@ -88,10 +88,10 @@ class LiveSolver:
             self.steps, self.last = None, done.value
             self.solves += 1
             if done.value.converged:
-                self.target.write(done.value.nodes, free)
+                self.target.write(self.rig.shown(self.session, done.value.nodes), free)
             return False
         if record is not None:
-            self.target.write(record.nodes, free)
+            self.target.write(self.rig.shown(self.session, record.nodes), free)
         return True
 
     def stop(self) -> None:
@@ -131,17 +131,17 @@ def bake(target: Target, settings: Settings, start: int, end: int) -> list[float
             if failure:
                 raise RigError(f"{failure} (frame {frame})")
             previous = np.array(result.nodes)
-            solved.append((frame, previous, rig))
+            solved.append((frame, rig.shown(session, previous), rig))
             errors.append(float(result.rel_volume_error))
     finally:
         scene.frame_set(here)
     points = target.lattice.data.points
     for frame, nodes, rig in solved:
-        free = ~blender_order(rig.pinned, rig.shape)
+        free = rig.written()
         target.write(nodes, free)
         for i in np.flatnonzero(free):
             points[int(i)].keyframe_insert("co_deform", frame=frame, group="Isochor")
-    free_all = np.flatnonzero(~blender_order(solved[0][2].pinned, solved[0][2].shape))
+    free_all = np.flatnonzero(solved[0][2].written())
     target.lattice[BAKED] = sorted(set(target.lattice.get(BAKED, [])) | set(map(int, free_all)))
     scene.frame_set(here)
     return errors

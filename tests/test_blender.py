@@ -107,18 +107,16 @@ def volume_ratio(addon, ob) -> float:
 # --- Blender's modifier = Isochor's FFD ---------------------------------------------------
 
 
-@needs_bases
-@pytest.mark.parametrize("kind", KINDS)
-@pytest.mark.parametrize("shape", [(2, 2, 2), (3, 4, 2), (5, 3, 6), (8, 2, 4)])
-def test_blenders_modifier_is_isochors_ffd(addon, kind, shape):
-    """Random points inside and outside the box, random point moves, a rotated, scaled
-    lattice object: the evaluated modifier output equals Isochor's deformation within
-    1e-6 of the model's size (Blender evaluates in float32)."""
+def ffd_case(kind: str, shape, outside: bool = False):
+    """Random points inside and outside the box (it spans -1..1), random point moves, a
+    rotated, moved lattice object: (Blender's evaluated modifier output, Isochor's FFD of
+    the same points, the points' size)."""
+    from blender.rig import BASES, isochor_order
     from blender.scene import Target
 
     empty_scene()
-    rng = np.random.default_rng(hash((kind, shape)) % 2**32)
-    cloud = rng.uniform(-1.4, 1.4, (400, 3))  # the box spans -1..1: some points outside
+    rng = np.random.default_rng(abs(hash((kind, shape, outside))) % 2**32)
+    cloud = rng.uniform(-1.4, 1.4, (400, 3))
     mesh = bpy.data.meshes.new("cloud")
     mesh.from_pydata(cloud.tolist(), [], [])
     ob = bpy.data.objects.new("cloud", mesh)
@@ -130,24 +128,34 @@ def test_blenders_modifier_is_isochors_ffd(addon, kind, shape):
     mod.object = lat
     moved = points(lat) + rng.normal(0, 0.15, (len(lat.data.points), 3))
     lat.data.points.foreach_set("co_deform", moved.ravel())
+    if outside:  # Blender puts the inner points on the faces' interpolation when set
+        lat.data.use_outside = True
+        moved = points(lat)
     bpy.context.view_layer.update()
-    blender = evaluated(ob)
     target = Target(ob, mod, lat)
-    to_lat = target.to_lattice()
-    rest = target.rest()
-    from blender.rig import BASES, isochor_order
-
-    ffd = Lattice(
-        (lat.data.points_u, lat.data.points_v, lat.data.points_w),
-        rest[0],
-        np.diag(rest[-1] - rest[0]),
-        basis=BASES[kind],
-    )
+    to_lat, rest = target.to_lattice(), target.rest()
+    options = {"outside": True} if outside else {}
+    ffd = Lattice(shape, rest[0], np.diag(rest[-1] - rest[0]), basis=BASES[kind], **options)
     local = cloud @ to_lat[:3, :3].T + to_lat[:3, 3]
-    out = ffd.deform(local, isochor_order(moved, ffd.shape))
+    out = ffd.deform(local, isochor_order(moved, shape))
     back = np.linalg.inv(to_lat)
-    isochor_says = out @ back[:3, :3].T + back[:3, 3]
-    size = np.ptp(cloud, axis=0).max()
+    return evaluated(ob), out @ back[:3, :3].T + back[:3, 3], np.ptp(cloud, axis=0).max()
+
+
+@needs_bases
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("shape", [(2, 2, 2), (3, 4, 2), (5, 3, 6), (8, 2, 4)])
+def test_blenders_modifier_is_isochors_ffd(addon, kind, shape):
+    """The evaluated modifier output equals Isochor's deformation within 1e-6 of the
+    model's size (Blender evaluates in float32)."""
+    blender, isochor_says, size = ffd_case(kind, shape)
+    assert np.abs(blender - isochor_says).max() <= 1e-6 * size
+
+
+@needs_bases
+@pytest.mark.parametrize(("kind", "shape"), [("KEY_BSPLINE", (4, 3, 5)), ("KEY_LINEAR", (3, 3, 3))])
+def test_blenders_outside_option_is_isochors(addon, kind, shape):
+    blender, isochor_says, size = ffd_case(kind, shape, outside=True)
     assert np.abs(blender - isochor_says).max() <= 1e-6 * size
 
 
@@ -194,6 +202,25 @@ def test_bad_input_is_one_line_and_changes_nothing(addon):
     np.testing.assert_array_equal(points(lat), before)
 
 
+@needs_bases
+def test_a_mesh_that_cannot_be_closed_is_one_line(addon):
+    empty_scene()
+    mesh = bpy.data.meshes.new("sheet")
+    corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0.5, 0.5, 0.5)]
+    mesh.from_pydata(corners, [], [(0, 1, 4), (1, 2, 4), (2, 3, 4)])
+    ob = bpy.data.objects.new("sheet", mesh)
+    bpy.context.scene.collection.objects.link(ob)
+    lat = lattice((3, 3, 3), "KEY_BSPLINE")
+    ob.modifiers.new("Lattice", "LATTICE").object = lat
+    bpy.context.view_layer.objects.active = ob
+    lat.data.points.foreach_set("select", np.arange(27) < 9)
+    before = points(lat)
+    with pytest.raises(RuntimeError, match=r"^Error: Isochor: the surface is not closed") as err:
+        bpy.ops.isochor.preserve_volume()
+    assert len(str(err.value).strip().splitlines()) == 1
+    np.testing.assert_array_equal(points(lat), before)
+
+
 def pin_and_drag(lat, lift: float) -> np.ndarray:
     """Pins the bottom two layers (w = 0, 1) and the top layer's middle points, moved up by
     ``lift`` of the lattice's height; returns the pinned mask (Blender's order)."""
@@ -232,6 +259,15 @@ def test_preserve_volume_keeps_the_evaluated_volume_and_the_far_side(addon, shap
     moved = np.linalg.norm(evaluated(ob)[low] - rest_bottom[low], axis=1).max()
     assert moved <= 0.05 * np.ptp(rest_bottom[:, 2]), moved
     assert bpy.context.scene.isochor.volume_ratio == pytest.approx(1, abs=TOL_VOLUME + F32_VOLUME)
+
+
+@needs_bases
+def test_blenders_outside_option_solves(addon):
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=2)
+    lat.data.use_outside = True
+    pin_and_drag(lat, 0.3)
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    assert abs(volume_ratio(addon, ob) - 1) <= TOL_VOLUME + F32_VOLUME
 
 
 @needs_bases
