@@ -42,7 +42,7 @@ def child() -> None:
 
     mesh = torus(64, 48)
     lattice = Lattice.around(mesh.vertices, (3, 3, 3))
-    basis = lattice.basis(mesh.vertices)
+    basis = lattice.point_basis(mesh.vertices)
     op = VolumeOperator(mesh.faces, mesh.n_vertices)
 
     def evaluate():

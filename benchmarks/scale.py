@@ -112,7 +112,7 @@ def scale_row(
     """
     lattice = Lattice.around(mesh.vertices, shape)
     t = time.perf_counter()
-    basis = lattice.basis(mesh.vertices)
+    basis = lattice.point_basis(mesh.vertices)
     op = VolumeOperator(mesh.faces, mesh.n_vertices)
     setup = time.perf_counter() - t
     rng = np.random.default_rng(0)

@@ -20,6 +20,8 @@ Modules at this level:
 - :mod:`.validate`  checks of user values (finite, in range, JSON fields) and input files
 - :mod:`.mesh`      TriMesh, an immutable triangle mesh
 - :mod:`.lattice`   Lattice: nodes per axis, affine frame (Eq 5), Bernstein basis (Eq 2-4)
+- :mod:`.localbasis`  Blender's lattice bases (B-spline, Catmull-Rom, cardinal, linear):
+  per-axis windows of 4 nodes, displacements from the rest grid, the "Outside" map
 - :mod:`.volume`    signed volume of a closed triangle mesh and its gradient (Eq 7-13), first
   moment (centre of mass) and its gradient
 - :mod:`.springs`   the spring network: 6 axis + 8 body-diagonal neighbours (Eq 14)

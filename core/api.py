@@ -76,8 +76,13 @@ class Session:
     Parameters
     ----------
     source : a model or scenario file path, or a mesh in memory (see :func:`deform`)
-    lattice : nodes per axis (2 to 10 each); by default 4 along the longest extent and 3
-        along the others (a scenario file's own lattice when ``source`` is one)
+    lattice : nodes per axis (2 to 10 each; 1 to 64 with a local basis); by default 4 along
+        the longest extent and 3 along the others (a scenario file's own lattice when
+        ``source`` is one)
+    basis : ``"bernstein"`` (the paper's, the default), or Blender's lattice interpolation
+        ``"bspline"``, ``"catmull-rom"``, ``"cardinal"``, ``"linear"``; one name or three
+        (one per axis). :attr:`lattice` ``.basis`` gives the per-axis tuple
+    outside : Blender's "Outside" option of a local basis (inner nodes follow the faces)
     padding : the lattice box around the model's bounding box, a fraction of its extent
     frame : ``(origin, axes)``: an explicit lattice box instead (rows of ``axes`` are its
         three edge vectors)
@@ -130,6 +135,8 @@ class Session:
         *,
         padding: float | None = None,
         frame: tuple[Sequence[float], Sequence[Sequence[float]]] | None = None,
+        basis: str | Sequence[str] | None = None,
+        outside: bool | None = None,
         **goal: Any,
     ) -> None:
         by_keyword = {f.keyword: f for f in GOAL_FIELDS}
@@ -155,6 +162,10 @@ class Session:
             changes["padding"] = padding
         if frame is not None:
             changes["frame"] = (list(frame[0]), [list(a) for a in frame[1]])
+        if basis is not None:
+            changes["lattice_basis"] = basis if isinstance(basis, str) else list(basis)
+        if outside is not None:
+            changes["lattice_outside"] = outside
         # each goal keyword checked as its scenario key is (the same one-line errors)
         changes.update({by_keyword[k].key: v for k, v in goal.items() if v is not None})
         if changes:
@@ -408,9 +419,10 @@ def deform(
         kept on some axes only
     handles : ``{"at": [x, y, z], "to": [x, y, z]}`` (or
         :class:`~isochor.core.goal.handles.Handle`): the mesh's point ``at`` must land at ``to``
-    options : ``padding``, ``frame`` and the goal's keywords (``target``: the volume to
-        reach relative to the mesh's, 1 by default; ``preserve``, ``keep_centroid``,
-        ``anchor``, ``fold_guard``, ``symmetry``): see :class:`Session`
+    options : ``padding``, ``frame``, ``basis``, ``outside`` and the goal's keywords
+        (``target``: the volume to reach relative to the mesh's, 1 by default;
+        ``preserve``, ``keep_centroid``, ``anchor``, ``fold_guard``, ``symmetry``): see
+        :class:`Session`
 
     Returns
     -------

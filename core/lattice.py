@@ -1,6 +1,8 @@
-"""Trivariate Bernstein free-form deformation lattice (paper Eq 2-5).
+"""Trivariate free-form deformation lattice (paper Eq 2-5): Bernstein or Blender's bases.
 
-A lattice has ``shape = (l, m, n)`` nodes along its three axes (2 to 10 each). Its frame is
+A lattice has ``shape = (l, m, n)`` nodes along its three axes (2 to 10 each for the
+paper's Bernstein basis, 1 to 64 for the local bases of Blender's lattice,
+:mod:`core.localbasis`: ``basis`` names one per axis). Its frame is
 an affine map: a point ``x`` has lattice coordinates ``(u, v, w) = (x - origin) @ inv(axes)``,
 where the rows of ``axes`` are the three edge vectors of the lattice box (this is the paper's
 4x3 matrix ``A`` of Eq 5, split into its linear part and its translation). The deformed point
@@ -10,7 +12,8 @@ Nodes are stored as an ``(l*m*n, 3)`` array in the paper's order (Eq 4): ``i`` s
 ``k`` fastest, so node ``(i, j, k)`` is row ``(i*m + j)*n + k``.
 
 The rest lattice is a regular grid, so the FFD with rest nodes is the identity (Bernstein
-polynomials reproduce linear functions).
+polynomials reproduce linear functions; the local bases blend displacements from the rest
+grid). An axis with one node (local bases only) has it in the middle of the box.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from math import comb
 import numpy as np
 
 from . import kernels
+from . import localbasis as lb
 from .errors import IsochorError
 
 MIN_NODES, MAX_NODES = 2, 10
@@ -188,26 +192,57 @@ class PointBasis:
         return np.ascontiguousarray(acc.reshape(n, 3, lm).transpose(2, 0, 1)).reshape(lm * n, 3)
 
 
+def basis_names(basis) -> tuple[str, str, str]:
+    """The per-axis basis names of ``basis``: one name for all three axes or three names
+    (:data:`core.localbasis.NAMES`); 'bernstein' cannot be mixed with the local ones."""
+    names = (basis,) * 3 if isinstance(basis, str) else tuple(basis)
+    if len(names) != 3 or not all(isinstance(b, str) for b in names):
+        raise IsochorError(f"A lattice basis is one name or three (one per axis), got {basis!r}.")
+    names = tuple(b.strip().lower().replace("_", "-") for b in names)
+    names = tuple("bspline" if b == "b-spline" else b for b in names)
+    for b in names:
+        if b not in lb.NAMES:
+            raise IsochorError(f"Unknown lattice basis {b!r}: use one of {', '.join(lb.NAMES)}.")
+    if lb.BERNSTEIN in names and len(set(names)) > 1:
+        raise IsochorError(
+            f"The Bernstein basis cannot be mixed with the local bases, got {', '.join(names)}."
+        )
+    return names
+
+
 @dataclass(frozen=True, eq=False)
 class Lattice:
-    """An FFD lattice: node counts per axis and the affine frame.
+    """An FFD lattice: node counts per axis, the affine frame and the basis.
 
     Attributes
     ----------
-    shape : (l, m, n) nodes per axis, each 2..10
+    shape : (l, m, n) nodes per axis, each 2..10 (Bernstein) or 1..64 (local bases)
     origin : (3,) float64, the corner at (u, v, w) = (0, 0, 0)
     axes : (3, 3) float64, rows are the edge vectors along u, v and w
+    basis : per-axis basis names (:data:`core.localbasis.NAMES`), "bernstein" by default;
+        one name is taken for all three axes
+    outside : Blender's "Outside": inner nodes follow the lattice's faces (local bases only)
     """
 
     shape: tuple[int, int, int]
     origin: np.ndarray
     axes: np.ndarray
+    basis: tuple[str, str, str] = (lb.BERNSTEIN,) * 3
+    outside: bool = False
 
     def __post_init__(self) -> None:
         shape = tuple(int(s) for s in self.shape)
-        if len(shape) != 3 or not all(MIN_NODES <= s <= MAX_NODES for s in shape):
+        basis = basis_names(self.basis)
+        local = basis[0] != lb.BERNSTEIN
+        low, high = (lb.MIN_LOCAL, lb.MAX_LOCAL) if local else (MIN_NODES, MAX_NODES)
+        if len(shape) != 3 or not all(low <= s <= high for s in shape):
+            which = f"the {'/'.join(sorted(set(basis)))} basis" if local else "the Bernstein basis"
             raise IsochorError(
-                f"A lattice needs {MIN_NODES} to {MAX_NODES} nodes per axis, got {self.shape}."
+                f"A lattice with {which} needs {low} to {high} nodes per axis, got {self.shape}."
+            )
+        if self.outside and not local:
+            raise IsochorError(
+                "The lattice option 'outside' (Blender's) needs a local basis, not Bernstein."
             )
         origin = np.array(self.origin, dtype=np.float64).reshape(3)
         axes = np.array(self.axes, dtype=np.float64).reshape(3, 3)
@@ -222,10 +257,33 @@ class Lattice:
         object.__setattr__(self, "shape", shape)
         object.__setattr__(self, "origin", origin)
         object.__setattr__(self, "axes", axes)
+        object.__setattr__(self, "basis", basis)
+        object.__setattr__(self, "outside", bool(self.outside))
+
+    @property
+    def local(self) -> bool:
+        """Whether the basis is local (Blender's): each point moves with at most 4x4x4
+        nodes, as displacements from the rest grid."""
+        return self.basis[0] != lb.BERNSTEIN
+
+    def like(self, shape=None, basis=None, outside=None) -> Lattice:
+        """This lattice's frame with another node count, basis or "outside" option."""
+        return Lattice(
+            self.shape if shape is None else shape,
+            self.origin,
+            self.axes,
+            self.basis if basis is None else basis,
+            self.outside if outside is None else outside,
+        )
 
     @classmethod
     def around(
-        cls, points: np.ndarray, shape: tuple[int, int, int] = (3, 3, 3), padding: float = 0.05
+        cls,
+        points: np.ndarray,
+        shape: tuple[int, int, int] = (3, 3, 3),
+        padding: float = 0.05,
+        basis=lb.BERNSTEIN,
+        outside: bool = False,
     ) -> Lattice:
         """An axis-aligned lattice around the bounding box of ``points``.
 
@@ -241,7 +299,7 @@ class Lattice:
         if not np.all(np.isfinite(ext)) or ext.max() <= 0:
             raise IsochorError("The model has no extent: all its vertices are at one point.")
         pad = padding * np.maximum(ext, 0.01 * ext.max())
-        return cls(shape, lo - pad, np.diag(ext + 2 * pad))
+        return cls(shape, lo - pad, np.diag(ext + 2 * pad), basis, outside)
 
     @property
     def n_nodes(self) -> int:
@@ -266,10 +324,11 @@ class Lattice:
         return tuple(int(a) for a in np.unravel_index(index, (l, m, n)))
 
     def grid_parameters(self) -> np.ndarray:
-        """(nodes, 3) lattice coordinates (i/(l-1), j/(m-1), k/(n-1)) of every node."""
-        l, m, n = self.shape
+        """(nodes, 3) lattice coordinates (i/(l-1), j/(m-1), k/(n-1)) of every node (0.5 on
+        an axis with one node, as Blender places it)."""
         g = np.meshgrid(
-            np.linspace(0, 1, l), np.linspace(0, 1, m), np.linspace(0, 1, n), indexing="ij"
+            *(np.linspace(0, 1, c) if c > 1 else np.array([0.5]) for c in self.shape),
+            indexing="ij",
         )
         return np.stack([a.ravel() for a in g], axis=1)
 
@@ -287,13 +346,53 @@ class Lattice:
         uvw = self.to_parameters(points)
         return np.all((uvw >= -tol) & (uvw <= 1 + tol), axis=1)
 
-    def basis(self, points: np.ndarray) -> PointBasis:
+    def point_basis(self, points: np.ndarray) -> PointBasis | lb.LocalPointBasis:
         """The basis of a fixed point set; compute once, apply to many node positions."""
+        if self.local:
+            points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+            return lb.LocalPointBasis(
+                self.to_parameters(points),
+                points,
+                self.shape,
+                self.basis,
+                self.rest_nodes,
+                self.outside_map,
+            )
         return PointBasis(self.to_parameters(points), self.shape)
 
     def deform(self, points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """(p, 3) points mapped by the FFD with node positions ``nodes`` (nodes, 3)."""
-        return self.basis(points).apply(np.asarray(nodes, dtype=np.float64))
+        return self.point_basis(points).apply(np.asarray(nodes, dtype=np.float64))
+
+    @property
+    def outside_map(self):
+        """(nodes, nodes) sparse Blender's "Outside" map when the option is on, else None."""
+        return lb.outside_matrix(self.shape) if self.outside else None
+
+    def effective_nodes(self, nodes: np.ndarray) -> np.ndarray:
+        """(nodes, 3) the nodes the deformation uses: with "outside" the inner ones follow
+        the faces (Blender's ``outside_lattice``), else ``nodes`` themselves."""
+        nodes = np.asarray(nodes, dtype=np.float64).reshape(self.n_nodes, 3)
+        return nodes if not self.outside else np.asarray(self.outside_map @ nodes)
+
+    def displacements(self, nodes: np.ndarray) -> np.ndarray:
+        """(nodes, 3) what a local basis blends: effective nodes minus effective rest nodes."""
+        return self.effective_nodes(nodes) - self.effective_nodes(self.rest_nodes)
+
+    def weights(self, points: np.ndarray):
+        """``(W, offset)``: the FFD at fixed rest points as ``W @ nodes + offset``; W (p, nodes)
+        dense for Bernstein (offset 0), sparse for a local basis."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        uvw = self.to_parameters(points)
+        if not self.local:
+            l, m, n = self.shape
+            bu, bv, bw = (bernstein(d - 1, uvw[:, a]) for a, d in enumerate(self.shape))
+            w = np.einsum("pi,pj,pk->pijk", bu, bv, bw).reshape(len(uvw), l * m * n)
+            return w, np.zeros_like(points)
+        w = lb.weight_matrix(self.basis, self.shape, np.ascontiguousarray(uvw.T))
+        if self.outside:
+            w = w @ self.outside_map
+        return w.tocsr(), points - w @ self.rest_nodes
 
     def jacobian(self, points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """(p, 3, 3) derivative of the FFD at world points: ``J[p, a, b] = dX_a / dx_b``.
@@ -302,8 +401,23 @@ class Lattice:
         determinant is the local change of volume (negative where the map folds space)."""
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         l, m, n = self.shape
-        grid = np.asarray(nodes, dtype=np.float64).reshape(l, m, n, 3)
         to_world = np.linalg.inv(self.axes).T  # d(u, v, w) / dx, transposed
+        if self.local:
+            uvw_t = np.ascontiguousarray(self.to_parameters(points).T)
+            d = self.displacements(nodes)
+            return (
+                np.concatenate(
+                    [
+                        lb.world_jacobians(
+                            self.basis, self.shape, uvw_t[:, s : s + BASIS_BLOCK], d, to_world
+                        )
+                        for s in range(0, len(points), BASIS_BLOCK)
+                    ]
+                )
+                if len(points)
+                else np.zeros((0, 3, 3))
+            )
+        grid = np.asarray(nodes, dtype=np.float64).reshape(l, m, n, 3)
         out = np.empty((len(points), 3, 3))
         for s in range(0, len(points), BASIS_BLOCK):
             uvw = self.to_parameters(points[s : s + BASIS_BLOCK])

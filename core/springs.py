@@ -43,6 +43,17 @@ def lattice_springs(shape: tuple[int, int, int]) -> np.ndarray:
 #: node x spring entries up to which the incidence product is dense (about 1 MB of float64)
 DENSE_INCIDENCE = 150_000
 
+#: above this many node coordinates the solver's curvature matrices are sparse (the
+#: springs' Hessian, the fold guard's Gauss-Newton term, their factorisation in
+#: :mod:`core.solve.precondition`); the Bernstein basis's largest lattice (10x10x10, 3000)
+#: stays dense as before, the local bases' dense lattices (16x16x16: 12288) go sparse
+SPARSE_VARIABLES = 3000
+
+
+def sparse_hessian(n_nodes: int) -> bool:
+    """Whether a lattice of ``n_nodes`` nodes takes the sparse curvature matrices."""
+    return 3 * int(n_nodes) > SPARSE_VARIABLES
+
 
 class SpringNetwork:
     """Spring energy and gradient over node positions.
@@ -109,16 +120,18 @@ class SpringNetwork:
         force = (self.stiffness * stretch / safe)[:, None] * d
         return energy, self._gather @ force
 
-    def hessian(self, nodes: np.ndarray) -> np.ndarray:
+    def hessian(self, nodes: np.ndarray):
         """A positive semi-definite approximation of the energy's Hessian at ``nodes``:
-        ``(3 nodes, 3 nodes)`` dense, rows and columns ordered as ``nodes.ravel()``.
+        ``(3 nodes, 3 nodes)``, rows and columns ordered as ``nodes.ravel()``: dense, or a
+        sparse CSR matrix above :data:`SPARSE_VARIABLES` coordinates.
 
         Per spring the exact block is ``k (u u^T + (1 - L/l) (I - u u^T))`` on the
         difference of its ends (``u`` the unit direction, ``l`` the length, ``L`` the rest
         length); the second term is dropped where it is negative (a compressed spring), so
         the matrix stays a valid preconditioner. Exact for every stretched spring."""
         nodes = np.ascontiguousarray(nodes, dtype=np.float64)
-        out = stepkernels.spring_hessian(nodes, *self._compiled)
+        big = sparse_hessian(self.n_nodes)
+        out = None if big else stepkernels.spring_hessian(nodes, *self._compiled)
         if out is not None:
             return out
         d = self._vectors(nodes)
@@ -130,6 +143,9 @@ class SpringNetwork:
         block = self.stiffness * (outer + bend[:, None, None] * (np.eye(3) - outer))  # (s,3,3)
         n = 3 * self.n_nodes
         weights = np.repeat(np.concatenate([block, -block]).ravel(), 2)
+        if big:
+            rows, cols = np.divmod(self._hessian_cells, n)
+            return sp.csr_matrix((weights, (rows, cols)), shape=(n, n))
         flat = np.bincount(self._hessian_cells, weights, n * n)
         return flat.reshape(n, n)
 

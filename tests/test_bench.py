@@ -633,10 +633,10 @@ def test_basis_output_layout_and_values(monkeypatch):
     lat = Lattice.around(pts, (4, 3, 5))
     nodes = lat.rest_nodes + rng.normal(scale=0.05, size=(lat.n_nodes, 3))
     g = rng.normal(size=(300, 3))
-    dense = lat.basis(pts)
+    dense = lat.point_basis(pts)
     monkeypatch.setattr(lat_mod, "DENSE_LIMIT", 0)
     monkeypatch.setattr(lat_mod, "BASIS_BLOCK", 64)
-    factored = lat.basis(pts)
+    factored = lat.point_basis(pts)
     for b in (dense, factored):
         out = b.apply(nodes)
         assert out.shape == (300, 3) and out.T.flags.c_contiguous  # coordinate-major rows

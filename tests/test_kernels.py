@@ -50,9 +50,9 @@ def test_basis_matches_the_dense_and_factored_numpy_forms(compiled, shape, monke
     points = lat.origin + uvw @ lat.axes  # inside the lattice, a few outside
     nodes = lat.rest_nodes + rng.normal(scale=0.3, size=(lat.n_nodes, 3))
     g = rng.normal(size=(p, 3))
-    default = lat.basis(points)
+    default = lat.point_basis(points)
     monkeypatch.setattr(lat_mod, "DENSE_LIMIT", 0)
-    factored = lat.basis(points)
+    factored = lat.point_basis(points)
     assert default.dense is not None and factored.dense is None
     fast_p, fast_g = default.apply(nodes), default.apply_transpose(g)
     assert fast_p.shape == (p, 3) and fast_p.flags.f_contiguous and fast_g.shape == nodes.shape
@@ -70,7 +70,7 @@ def test_a_basis_holds_only_its_coordinates_while_the_kernels_evaluate(compiled)
     lat = skewed_lattice((5, 5, 5))
     points = lat.origin + rng.uniform(size=(20000, 3)) @ lat.axes
     nodes = lat.rest_nodes + rng.normal(scale=0.2, size=(lat.n_nodes, 3))
-    basis = lat.basis(points)
+    basis = lat.point_basis(points)
     fast = basis.apply(nodes)
     basis.apply_transpose(fast)
     assert basis.nbytes == 20000 * 3 * 8
@@ -133,7 +133,7 @@ def test_results_do_not_depend_on_the_thread_count(compiled):
     mesh = torus(256, 160)  # more points and faces than two ranges of work
     assert mesh.n_vertices > 2 * kernels.CHUNK
     lat = skewed_lattice((4, 3, 5))
-    basis = lat.basis(mesh.vertices)
+    basis = lat.point_basis(mesh.vertices)
     op = VolumeOperator(mesh.faces, mesh.n_vertices)
     nodes = lat.rest_nodes + np.random.default_rng(2).normal(scale=0.1, size=(lat.n_nodes, 3))
     runs = []
@@ -179,7 +179,7 @@ def test_a_failing_compiled_call_falls_back_to_numpy(compiled, monkeypatch):
     )
     mesh = sphere_levels(3)[-1]
     lat = Lattice.around(mesh.vertices, (3, 3, 3))
-    basis = lat.basis(mesh.vertices)
+    basis = lat.point_basis(mesh.vertices)
     for name, value in (("kernels", fake), ("status", "ready"), ("reason", "")):
         monkeypatch.setattr(kernels._state, name, value)
     pts = basis.apply(lat.rest_nodes)
@@ -213,7 +213,7 @@ EVALUATE = textwrap.dedent("""
     from isochor.core.volume import VolumeOperator
     mesh = torus(64, 48)
     lat = Lattice.around(mesh.vertices, (3, 3, 3))
-    basis = lat.basis(mesh.vertices)
+    basis = lat.point_basis(mesh.vertices)
     op = VolumeOperator(mesh.faces, mesh.n_vertices)
     def evaluate():
         v, g = op.value_and_gradient(basis.apply(lat.rest_nodes), mesh.center)

@@ -63,9 +63,9 @@ def test_factored_basis_equals_dense_and_uses_less_memory(monkeypatch):
     lat = Lattice.around(pts, (5, 5, 5))
     nodes = lat.rest_nodes + rng.normal(scale=0.05, size=(125, 3))
     g = rng.normal(size=(5000, 3))
-    dense = lat.basis(pts)
+    dense = lat.point_basis(pts)
     monkeypatch.setattr(lat_mod, "DENSE_LIMIT", 0)
-    factored = lat.basis(pts)
+    factored = lat.point_basis(pts)
     assert dense.dense is not None and factored.dense is None
     assert np.allclose(factored.apply(nodes), dense.apply(nodes), atol=1e-12)
     assert np.allclose(factored.apply_transpose(g), dense.apply_transpose(g), atol=1e-10)
@@ -115,6 +115,6 @@ def test_a_basis_keeps_the_lattice_coordinates_of_its_points():
     rng = np.random.default_rng(5)
     lat = Lattice((3, 4, 2), (0.5, -1.0, 2.0), [[2.0, 0.3, 0.0], [0.1, 1.5, 0.2], [0, -0.4, 1]])
     pts = lat.origin + rng.uniform(size=(40, 3)) @ lat.axes
-    basis = lat.basis(pts)
+    basis = lat.point_basis(pts)
     assert basis.uvw.shape == (3, 40) and basis.uvw.flags.c_contiguous
     np.testing.assert_allclose(basis.uvw.T, lat.to_parameters(pts), atol=1e-14)

@@ -54,6 +54,7 @@ CORE_LAYERS = (
     {"errors"},
     {"defaults", "validate"},
     {"kernels"},
+    {"localbasis"},
     {"lattice", "mesh"},
     {"bodies", "springs", "volume"},
     {"io"},

@@ -33,6 +33,7 @@ import numpy as np
 from ..bodies import arrange
 from ..io.repair import body_labels, compact
 from ..lattice import Lattice, PointBasis
+from ..localbasis import LocalPointBasis
 from ..mesh import TriMesh
 from ..volume import MomentOperator, VolumeOperator, face_volumes
 from .spec import Goal
@@ -84,7 +85,7 @@ class _Part:
     """One shell of a level: its own basis and volume operator."""
 
     def __init__(self, lattice: Lattice, vertices: np.ndarray, faces: np.ndarray) -> None:
-        self.basis: PointBasis = lattice.basis(vertices)
+        self.basis: PointBasis | LocalPointBasis = lattice.point_basis(vertices)
         self.op = VolumeOperator(faces, len(vertices))
 
 
@@ -95,7 +96,7 @@ class Level:
     def __init__(self, lattice: Lattice, mesh: TriMesh, center: np.ndarray) -> None:
         self.lattice, self.mesh, self.center = lattice, mesh, center
         self.triangles = mesh.n_faces
-        self.basis: PointBasis = lattice.basis(mesh.vertices)
+        self.basis: PointBasis | LocalPointBasis = lattice.point_basis(mesh.vertices)
         self.volume_op = VolumeOperator(mesh.faces, mesh.n_vertices)
         self._last: tuple[bytes | None, float] = (None, 0.0)
         self._parts: tuple[list[_Part], np.ndarray] | None = None

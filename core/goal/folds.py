@@ -18,12 +18,15 @@ from dataclasses import dataclass
 from math import comb
 
 import numpy as np
+import scipy.sparse as sp
 
 from .. import kernels
+from .. import localbasis as lb
 from ..bodies import winding_numbers
 from ..errors import IsochorError
 from ..lattice import Lattice
 from ..mesh import TriMesh
+from ..springs import sparse_hessian
 
 #: points per block of the blocked determinant evaluation (temporaries stay in cache)
 BLOCK = 4096
@@ -135,8 +138,11 @@ def _determinants(lattice: Lattice, uvw_t: np.ndarray, nodes: np.ndarray) -> np.
     axis by axis (w by a matrix product, then v, then u), point-minor throughout; the world
     Jacobian is ``J = Ju @ inv(axes).T``."""
     l, m, n = lattice.shape
-    grid = np.asarray(nodes, dtype=np.float64).reshape(l, m, n, 3)
     to_world = np.linalg.inv(lattice.axes).T
+    if lattice.local:
+        d = lattice.displacements(nodes)
+        return lb.determinants(lattice.basis, lattice.shape, uvw_t, d, to_world)
+    grid = np.asarray(nodes, dtype=np.float64).reshape(l, m, n, 3)
     fast = kernels.determinants(uvw_t, grid, to_world)
     if fast is not None:
         return fast
@@ -240,6 +246,55 @@ class FoldCheck:
         )
 
 
+class SparseGradients:
+    """A local basis's world gradients at fixed samples, sparse: ``G_b`` (k, nodes) CSR for
+    b = x, y, z, each row the 64 entries of a sample's window (composed with the "Outside"
+    map), and the constant ``offset`` (3, k, 3) so that column b of ``J_p`` is
+    ``G_b[p] @ X + offset[b, p]`` (the identity minus the rest nodes' share)."""
+
+    def __init__(self, lattice: Lattice, uvw_t: np.ndarray) -> None:
+        inv = np.linalg.inv(lattice.axes)  # du_c / dx_b = inv[b, c]
+        rows, _, deriv = lb.windows(lattice.basis, lattice.shape, uvw_t)
+        k = rows.shape[0]
+        indptr = np.arange(0, 64 * k + 1, 64)
+        outside = lattice.outside_map
+        self.g = []
+        for b in range(3):
+            data = inv[b, 0] * deriv[0] + inv[b, 1] * deriv[1] + inv[b, 2] * deriv[2]
+            g = sp.csr_matrix((data.ravel(), rows.ravel(), indptr), shape=(k, lattice.n_nodes))
+            self.g.append((g @ outside).tocsr() if outside is not None else g)
+        rest = lattice.rest_nodes
+        self.offset = np.stack([np.eye(3)[b] - self.g[b] @ rest for b in range(3)])
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(g.data.nbytes + g.indices.nbytes + g.indptr.nbytes for g in self.g))
+
+    def reach(self) -> np.ndarray:
+        """(nodes,) the largest ``|grad w_node|`` over the samples."""
+        squares = self.g[0].multiply(self.g[0]) + self.g[1].multiply(self.g[1])
+        squares = squares + self.g[2].multiply(self.g[2])
+        return np.sqrt(np.asarray(squares.max(axis=0).todense()).ravel())
+
+    def columns(self, x: np.ndarray, rows=slice(None)) -> np.ndarray:
+        """(3, a, 3) columns of the Jacobians at the samples ``rows``."""
+        return np.stack([self.g[b][rows] @ x + self.offset[b, rows] for b in range(3)])
+
+    def gradient(self, w: np.ndarray, rows) -> np.ndarray:
+        """(nodes, 3) ``sum_b G_b[rows]^T w[b]`` for ``w`` (3, a, 3)."""
+        return sum(self.g[b][rows].T @ w[b] for b in range(3))
+
+    def det_rows(self, cof: np.ndarray, rows) -> sp.csr_matrix:
+        """(a, 3 nodes) sparse ``grad det_p`` over (node, axis) at the samples ``rows``."""
+        parts = []
+        for axis in range(3):
+            part = sum(sp.diags(cof[b, :, axis]) @ self.g[b][rows] for b in range(3)).tocoo()
+            parts.append((part.row, part.col * 3 + axis, part.data))
+        r, c, v = (np.concatenate(t) for t in zip(*parts))
+        a = len(cof[0])
+        return sp.csr_matrix((v, (r, c)), shape=(a, 3 * self.g[0].shape[1]))
+
+
 class FoldGuard:
     """A penalty that keeps ``det J`` above a margin at fixed sample points.
 
@@ -252,7 +307,9 @@ class FoldGuard:
     ``dP/dX[node, a] = sum_p sum_b phi'(det_p) cof_p[a, b] G[b, p, node]``, two matrix
     products per evaluation, over the samples within the margin only: det J at every
     sample comes from the compiled kernels when they are ready (the NumPy path takes it
-    from ``G`` too).
+    from ``G`` too). A local basis keeps ``G`` sparse (:class:`SparseGradients`: 64 nodes
+    per sample), and its Gauss-Newton term is sparse too above
+    :data:`core.springs.SPARSE_VARIABLES` node coordinates.
 
     Parameters
     ----------
@@ -274,6 +331,16 @@ class FoldGuard:
         nodes = lattice.n_nodes
         inv = np.linalg.inv(lattice.axes)  # du_c / dx_b = inv[b, c]
         uvw_t = np.ascontiguousarray(lattice.to_parameters(points).T)
+        #: (3, k, 3) the samples' lattice coordinates and inv(axes).T: det J by the kernels
+        self._uvw_t, self._to_world = uvw_t, inv.T
+        #: (nodes at the last full evaluation, its min det J - margin, its max |J|_F)
+        self._ref: tuple[np.ndarray, float, float] | None = None
+        #: a local basis's sparse gradients (None: Bernstein's dense ``_g``)
+        self._sparse = SparseGradients(lattice, uvw_t) if lattice.local else None
+        if self._sparse is not None:
+            self._g = np.zeros((3, 0, 0))
+            self._reach = self._sparse.reach() if k else np.zeros(0)
+            return
         self._g = g = np.empty((3, k, nodes))
         step = max(1, GUARD_BLOCK // nodes)
         for s in range(0, k, step):
@@ -287,20 +354,18 @@ class FoldGuard:
                 g[b, s : s + width] = (inv[b, 0] * d[0] + inv[b, 1] * d[1] + inv[b, 2] * d[2]).T
         #: (nodes,) the largest |grad B_node| over the samples (see :meth:`_inactive`)
         self._reach = np.sqrt(np.einsum("bpn,bpn->pn", g, g)).max(axis=0) if k else np.zeros(0)
-        #: (3, k) the samples' lattice coordinates and inv(axes).T: det J by the kernels
-        self._uvw_t, self._to_world = uvw_t, inv.T
-        #: (nodes at the last full evaluation, its min det J - margin, its max |J|_F)
-        self._ref: tuple[np.ndarray, float, float] | None = None
 
     @property
     def nbytes(self) -> int:
         """Memory held by the precomputed basis gradients, in bytes."""
-        return int(self._g.nbytes)
+        return int(self._g.nbytes if self._sparse is None else self._sparse.nbytes)
 
     def _columns(self, nodes: np.ndarray, rows=slice(None)) -> np.ndarray:
         """(3, k, 3) columns of the Jacobians (at the samples ``rows``):
         ``out[b, p, a] = J_p[a, b]``."""
         x = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+        if self._sparse is not None:
+            return self._sparse.columns(x, rows)
         g = self._g[:, rows]
         return (g.reshape(-1, g.shape[2]) @ x).reshape(3, -1, 3)
 
@@ -331,9 +396,20 @@ class FoldGuard:
         stored basis gradients (``3 k nodes`` numbers read each time)."""
         x = np.array(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
         l, m, n = self.lattice.shape
-        fast = kernels.determinants(
-            self._uvw_t, x.reshape(l, m, n, 3), self._to_world, frobenius=True
-        )
+        lat = self.lattice
+        if lat.local:
+            fast = kernels.local_determinants(
+                self._uvw_t,
+                lb.codes(lat.basis),
+                lat.displacements(x),
+                lat.shape,
+                self._to_world,
+                frobenius=True,
+            )
+        else:
+            fast = kernels.determinants(
+                self._uvw_t, x.reshape(l, m, n, 3), self._to_world, frobenius=True
+            )
         if fast is not None:
             dets, squares = fast
         else:
@@ -377,6 +453,9 @@ class FoldGuard:
         scale = self.weight / k
         value = scale * float(np.sum(short**3))
         slope = -3.0 * scale * short**2  # phi'(det) at the active points
+        if self._sparse is not None:
+            grad += self._sparse.gradient(slope[None, :, None] * cof, active)
+            return value, grad
         w = (slope[None, :, None] * cof).reshape(-1, 3)  # (3 * a, 3)
         g = self._g if active.size == k else self._g[:, active]
         grad += g.reshape(w.shape[0], -1).T @ w
@@ -389,9 +468,15 @@ class FoldGuard:
         preconditioner (:mod:`isochor.core.solve.precondition`)."""
         n = 3 * self.lattice.n_nodes
         near = self._near(nodes)
+        big = sparse_hessian(self.lattice.n_nodes)
         if near is None:
-            return np.zeros((n, n))
+            return sp.csr_matrix((n, n)) if big else np.zeros((n, n))
         short, active, cof = near
+        if self._sparse is not None:
+            rows = self._sparse.det_rows(cof, active)
+            curvature = 6.0 * self.weight / self.n_points * short
+            out = (rows.T @ sp.diags(curvature) @ rows).tocsr()
+            return out if big else out.toarray()
         # grad det_p over (node, axis): sum_b g[b, p, node] cof[b, p, axis]
         rows = np.einsum("bpn,bpa->pna", self._g[:, active], cof).reshape(active.size, n)
         curvature = 6.0 * self.weight / self.n_points * short  # phi''(det)

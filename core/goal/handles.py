@@ -91,8 +91,13 @@ class HandleResult:
 
 
 def weights(lattice: Lattice, points: np.ndarray) -> np.ndarray:
-    """(p, nodes) FFD weights of rest points (Eq 4's node order): ``deformed = W @ nodes``."""
-    uvw = lattice.to_parameters(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    """(p, nodes) FFD weights of rest points (Eq 4's node order): ``deformed = W @ nodes``
+    for the Bernstein basis; a local basis (:mod:`isochor.core.localbasis`) adds a per-point
+    offset (:meth:`isochor.core.lattice.Lattice.weights`)."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if lattice.local:
+        return lattice.weights(points)[0].toarray()
+    uvw = lattice.to_parameters(points)
     l, m, n = lattice.shape
     bu, bv, bw = (bernstein(d - 1, uvw[:, a]) for a, d in enumerate((l, m, n)))
     return np.einsum("pi,pj,pk->pijk", bu, bv, bw).reshape(len(uvw), l * m * n)
@@ -101,12 +106,15 @@ def weights(lattice: Lattice, points: np.ndarray) -> np.ndarray:
 def handle_rows(lattice: Lattice, handles: Sequence[Handle]) -> tuple[np.ndarray, np.ndarray]:
     """The handles as linear equations ``rows . X = b``: rows (3h, nodes, 3), b (3h,)."""
     h, n = len(handles), lattice.n_nodes
-    w = weights(lattice, np.array([hd.at for hd in handles], dtype=np.float64).reshape(h, 3))
+    at = np.array([hd.at for hd in handles], dtype=np.float64).reshape(h, 3)
+    w = weights(lattice, at)
     rows = np.zeros((h, 3, n, 3))
     for a in range(3):
         rows[:, a, :, a] = w
-    b = np.array([hd.to for hd in handles], dtype=np.float64).reshape(3 * h)
-    return rows.reshape(3 * h, n, 3), b
+    b = np.array([hd.to for hd in handles], dtype=np.float64).reshape(h, 3)
+    if lattice.local:  # a local basis: deformed = W X + offset
+        b = b - lattice.weights(at)[1]
+    return rows.reshape(3 * h, n, 3), b.reshape(3 * h)
 
 
 class HandleSystem:

@@ -4,7 +4,8 @@ package's other modules:
 
 - :mod:`.step`       the solver step's entry points (springs, L-BFGS recursion and memory, a
   small preconditioner's inverse); :mod:`.pairs`, the L-BFGS memory on the NumPy path
-- :mod:`.basis`, :mod:`.bern`  the Bernstein basis products; :mod:`.volume` the volume and
+- :mod:`.basis`, :mod:`.bern`  the Bernstein basis products; :mod:`.local` the local
+  (Blender) bases' products and det J; :mod:`.volume` the volume and
   its gradient; :mod:`.folds` det J; :mod:`.solver` the solver step; :mod:`.winding` the
   solid-angle term both paths share
 - :mod:`.base`       numba or stand-ins, the cache folder; :mod:`.signatures` the types each
@@ -363,6 +364,69 @@ def determinants(
 
     def task(i):
         k.determinant_range(uvw, x, t, out, norms, *ranges[i])
+
+    _jitthreads.run(task, len(ranges))
+    return (out, norms) if frobenius else out
+
+
+# --- the local (Blender) bases: core.localbasis ----------------------------------------------
+
+
+@_guard
+def local_apply(uvw, points, codes, displacements, shape, k=None) -> np.ndarray | None:
+    """(3, p) points ``p + sum w D`` for the (3, p) lattice coordinates and world points and
+    the (l m n, 3) displacements; None: no kernels."""
+    k = k or _kernels(uvw.shape[1])
+    if k is None:
+        return None
+    l, m, n = shape
+    if displacements.shape != (l * m * n, 3):
+        return None
+    d = np.ascontiguousarray(displacements, dtype=np.float64).reshape(l, m, n, 3)
+    out = np.empty(uvw.shape)
+    ranges = _chunks(uvw.shape[1])
+    _jitthreads.run(
+        lambda i: k.local_apply_range(uvw, points, codes, d, out, *ranges[i]), len(ranges)
+    )
+    return out
+
+
+@_guard
+def local_transpose(uvw, codes, rows, shape, k=None) -> np.ndarray | None:
+    """(l m n, 3) ``W^T g`` for (3, p) per-point rows; None: no kernels."""
+    k = k or _kernels(uvw.shape[1])
+    if k is None:
+        return None
+    l, m, n = shape
+    if rows.shape != uvw.shape:
+        return None
+    g = np.ascontiguousarray(rows, dtype=np.float64)
+    ranges = _chunks(uvw.shape[1])
+    acc = np.zeros((len(ranges), l * m * n * 3))
+    _jitthreads.run(
+        lambda i: k.local_transpose_range(uvw, codes, g, l, m, n, *ranges[i], acc[i]),
+        len(ranges),
+    )
+    return acc.sum(axis=0).reshape(l * m * n, 3) if len(ranges) > 1 else acc[0].reshape(-1, 3)
+
+
+@_guard
+def local_determinants(uvw, codes, displacements, shape, to_world, k=None, frobenius=False):
+    """(p,) det J of a local basis at the (3, p) lattice coordinates for the (l m n, 3)
+    displacements, with ``frobenius`` also (p,) ``|J|_F^2``; None: no kernels."""
+    k = k or _kernels(uvw.shape[1])
+    if k is None:
+        return None
+    l, m, n = shape
+    uvw = np.ascontiguousarray(uvw, dtype=np.float64)
+    d = np.ascontiguousarray(displacements, dtype=np.float64).reshape(l, m, n, 3)
+    t = np.ascontiguousarray(to_world, dtype=np.float64)
+    out = np.empty(uvw.shape[1])
+    norms = np.empty(uvw.shape[1] if frobenius else 0)
+    ranges = _chunks(uvw.shape[1])
+
+    def task(i):
+        k.local_determinant_range(uvw, codes, d, t, out, norms, *ranges[i])
 
     _jitthreads.run(task, len(ranges))
     return (out, norms) if frobenius else out

@@ -8,6 +8,10 @@ Version 1::
       "model": {"path": "cow.obj"}            or {"builtin": "torus", ...shape parameters},
       "lattice": {"nodes": [5, 2, 2], "padding": 0.05}
                  or {"nodes": [...], "frame": {"origin": [x, y, z], "axes": [[..], [..], [..]]}},
+                 optional "basis": "bernstein" (the default), "bspline", "catmull-rom",
+                 "cardinal", "linear" or one per axis ["bspline", "linear", "bspline"]
+                 (Blender's lattice, :mod:`isochor.core.localbasis`: 1 to 64 nodes per
+                 axis), and "outside": true (Blender's option; local bases only)
       "moves": [{"node": [0, 0, 0], "by": [0.0, 1.5, 0.0]},
                 {"node": [4, 1, 1], "to": [5.2, 3.1, 1.0]}],
       "pins": [[2, 0, 0]],
@@ -60,7 +64,8 @@ from ..goal.handles import Handle
 from ..goal.spec import GOAL_FIELDS, Goal
 from ..io.atomic import atomic_write_text
 from ..io.formats import is_model
-from ..lattice import MAX_NODES, MIN_NODES
+from ..lattice import MAX_NODES, MIN_NODES, basis_names
+from ..localbasis import BERNSTEIN, MAX_LOCAL, MIN_LOCAL
 from ..validate import (
     check_keys,
     input_file,
@@ -109,6 +114,10 @@ class Scenario:
     base_dir: Path | None = field(default=None, compare=False)
     #: the file it was read from, for messages (None when built in memory)
     source: Path | None = field(default=None, compare=False)
+    #: the lattice's per-axis basis (:data:`isochor.core.localbasis.NAMES`)
+    lattice_basis: tuple[str, str, str] = (BERNSTEIN,) * 3
+    #: Blender's "Outside" option of a local basis
+    lattice_outside: bool = False
 
     # -- JSON ---------------------------------------------------------------------------
     @classmethod
@@ -155,10 +164,22 @@ class Scenario:
         elif not isinstance(model["builtin"], str):
             raise IsochorError("model.builtin: must be a string")
         lat = doc.get("lattice", {})
-        check_keys(lat, "lattice", {"nodes", "padding", "frame"}, set())
+        check_keys(lat, "lattice", {"nodes", "padding", "frame", "basis", "outside"}, set())
+        try:
+            basis = basis_names(lat.get("basis", BERNSTEIN))
+        except IsochorError as exc:
+            raise IsochorError(f"lattice.basis: {exc}") from None
+        local = basis[0] != BERNSTEIN
+        outside = lat.get("outside", False)
+        if not isinstance(outside, bool):
+            raise IsochorError("lattice.outside: must be true or false")
+        if outside and not local:
+            raise IsochorError("lattice.outside: needs a local basis (bspline, ...), not bernstein")
+        low, high = (MIN_LOCAL, MAX_LOCAL) if local else (MIN_NODES, MAX_NODES)
         shape = int_triple(lat.get("nodes", list(LATTICE_NODES)), "lattice.nodes")
-        if not all(MIN_NODES <= s <= MAX_NODES for s in shape):
-            raise IsochorError(f"lattice.nodes: each axis needs {MIN_NODES} to {MAX_NODES} nodes")
+        if not all(low <= s <= high for s in shape):
+            which = "" if local else " (the Bernstein basis; 1 to 64 with a local one)"
+            raise IsochorError(f"lattice.nodes: each axis needs {low} to {high} nodes{which}")
         padding = number(lat.get("padding", PADDING), "lattice.padding")
         if not 0 < padding <= 10:
             raise IsochorError(
@@ -196,6 +217,8 @@ class Scenario:
             handles=edit.handles,
             timeline=timeline,
             base_dir=Path(base_dir) if base_dir is not None else None,
+            lattice_basis=basis,
+            lattice_outside=outside,
         )
 
     @property
@@ -214,6 +237,11 @@ class Scenario:
 
     def to_dict(self) -> dict[str, Any]:
         lattice: dict[str, Any] = {"nodes": list(self.lattice_nodes)}
+        if self.lattice_basis != (BERNSTEIN,) * 3:
+            one = len(set(self.lattice_basis)) == 1
+            lattice["basis"] = self.lattice_basis[0] if one else list(self.lattice_basis)
+        if self.lattice_outside:
+            lattice["outside"] = True
         if self.frame is None:
             lattice["padding"] = self.padding
         else:
@@ -289,13 +317,18 @@ class Scenario:
     def checked(self, changes: dict[str, Any]) -> Scenario:
         """``scenario`` with ``changes``, each checked as the scenario file's field would be
         (the same one-line errors: ``lattice.nodes: each axis needs 2 to 10 nodes``).
-        ``changes`` names ``lattice_nodes``, ``padding``, ``frame``, ``moves`` (a new
+        ``changes`` names ``lattice_nodes``, ``lattice_basis``, ``lattice_outside``,
+        ``padding``, ``frame``, ``moves`` (a new
         lattice: the old edits go) and the goal's fields by their scenario keys."""
         doc = self.to_dict()
         doc["model"] = {"builtin": "sphere"}  # the model is not what is checked here
         lat = doc["lattice"]
         if "lattice_nodes" in changes:
             lat["nodes"] = [getattr(n, "item", lambda n=n: n)() for n in changes["lattice_nodes"]]
+        if "lattice_basis" in changes:
+            lat["basis"] = changes["lattice_basis"]
+        if "lattice_outside" in changes:
+            lat["outside"] = changes["lattice_outside"]
         if "padding" in changes:
             lat.pop("frame", None)
             lat["padding"] = changes["padding"]

@@ -174,7 +174,11 @@ def coverage(lattice: Lattice, points: np.ndarray) -> str | None:
     return (
         f"{100 * outside / len(points):.3g}% of the model's vertices ({outside} of "
         f"{len(points)}) lie outside the lattice frame, up to {beyond.max():.3g} of its "
-        "size: the deformation there is extrapolated, not controlled by the lattice."
+        + (
+            "size: there it follows the nearest face of the lattice (as in Blender)."
+            if lattice.local
+            else "size: the deformation there is extrapolated, not controlled by the lattice."
+        )
     )
 
 
@@ -185,10 +189,15 @@ def build(
     if model is None:
         model = scenario_model(scenario, loader)
     levels = model.levels
+    basis, outside = scenario.lattice_basis, scenario.lattice_outside
     if scenario.frame is None:
-        lattice = Lattice.around(levels[-1].vertices, scenario.lattice_nodes, scenario.padding)
+        lattice = Lattice.around(
+            levels[-1].vertices, scenario.lattice_nodes, scenario.padding, basis, outside
+        )
     else:
-        lattice = Lattice(scenario.lattice_nodes, scenario.frame[0], scenario.frame[1])
+        lattice = Lattice(
+            scenario.lattice_nodes, scenario.frame[0], scenario.frame[1], basis, outside
+        )
     nodes, fixed = scenario.edit.apply(lattice)
     Mirror.of(lattice, scenario.goal.symmetry)  # a frame the mirror cannot use fails here
     surface = EmbeddedSurface(lattice, levels)

@@ -26,6 +26,7 @@ import time
 from collections.abc import Generator, Sequence
 
 import numpy as np
+import scipy.sparse as sp
 
 from .. import kernels
 from ..errors import IsochorError
@@ -195,6 +196,8 @@ def solve(
 
         def hessian(x):
             h, near = springs.hessian(x), guard.gauss_newton(x)
+            if sp.issparse(near):  # a dense local lattice: both sparse
+                return h + near * size**2 if near.nnz else h
             if near.any():  # (zero where no sample is within the margin)
                 h += near * size**2
             return h

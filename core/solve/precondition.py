@@ -24,7 +24,11 @@ an ``m x m`` solve instead of a new factorisation:
 
 Up to :data:`EXPLICIT` variables ``M^-1`` is kept as a matrix (one product a step); above
 it, ``A^-1`` is applied by two triangular solves a step and never formed: the inverse of
-2700 variables (a 10x10x10 lattice) costs 0.8 s, the solves 3 ms a step. Up to
+2700 variables (a 10x10x10 lattice) costs 0.8 s, the solves 3 ms a step. A dense lattice
+of a local basis (thousands of nodes) hands over sparse matrices
+(:data:`core.springs.SPARSE_VARIABLES`): ``A`` is then factored by SciPy's sparse LU
+(SuperLU, no pivoting on the symmetric positive definite matrix, a fill-reducing
+ordering), each step two sparse triangular solves. Up to
 :data:`core.kernels.step.SMALL_INVERSE` variables ``A^-1`` is one compiled call (SciPy's
 wrappers cost more than the arithmetic there), and with one constraint (the volume alone)
 the Woodbury term is a scalar.
@@ -36,6 +40,8 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.linalg as la
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from scipy.linalg import blas
 
 from ..kernels import step as stepkernels
@@ -69,10 +75,13 @@ class Curvature:
         solver's units (energy / size^2 per (coordinate / size)^2)
     """
 
-    def __init__(self, hessian: np.ndarray) -> None:
+    def __init__(self, hessian) -> None:
+        self._factor, self.inverse, self._sparse = None, None, None
+        if sp.issparse(hessian):
+            self._sparse_factor(hessian)
+            return
         a = np.array(hessian, dtype=np.float64)
         self.count = len(a)
-        self._factor, self.inverse = None, None
         ridge = RIDGE * max(float(a.trace()) / max(self.count, 1), 1e-12)
         # compiled, for small matrices only (None otherwise; False: not positive definite)
         small = stepkernels.spd_inverse(a, ridge) if self.count <= EXPLICIT else None
@@ -90,13 +99,37 @@ class Curvature:
         if self.count <= EXPLICIT:
             self.inverse = la.cho_solve(factor, np.eye(self.count), check_finite=False)
 
+    def _sparse_factor(self, hessian) -> None:
+        """The sparse path (see the module): SuperLU of ``A``, kept when it is positive
+        definite (every pivot positive, no pivoting)."""
+        a = sp.csc_matrix(hessian, dtype=np.float64)
+        self.count = a.shape[0]
+        ridge = RIDGE * max(float(a.diagonal().sum()) / max(self.count, 1), 1e-12)
+        a = (a + ridge * sp.identity(self.count, format="csc")).tocsc()
+        if not _finite(a.data):
+            return
+        try:
+            lu = spla.splu(
+                a,
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=0.0,
+                options={"SymmetricMode": True},
+            )
+        except (RuntimeError, ValueError):
+            return
+        pivots = lu.U.diagonal()
+        if _finite(pivots) and bool(np.all(pivots > 0)):
+            self._sparse = lu
+
     @property
     def ok(self) -> bool:
         """``A`` is positive definite (with finite numbers)."""
-        return self._factor is not None or self.inverse is not None
+        return self._factor is not None or self.inverse is not None or self._sparse is not None
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^-1 b`` for ``b`` (count,) or (count, k)."""
+        if self._sparse is not None:
+            return self._sparse.solve(np.asarray(b, dtype=np.float64))
         if self.inverse is not None:
             return self.inverse @ b
         if b.ndim == 1 and b.dtype == np.float64:

@@ -174,6 +174,10 @@ class Coordinates:
     def restrict(self, h: np.ndarray) -> np.ndarray:
         """A (3n, 3n) matrix over the node coordinates (a Hessian) as one over the
         variables, ``matrix @ h @ matrix.T``: a plain selection without ties."""
+        if sp.issparse(h):  # a dense local lattice (core.springs.SPARSE_VARIABLES)
+            if len(self.dst):
+                return (self.matrix @ (self.matrix @ h).T).tocsr()
+            return h.tocsr()[self._columns][:, self._columns]
         if len(self.dst):
             return np.asarray(self.matrix @ (self.matrix @ h).T)
         return h.take(self._columns, axis=0).take(self._columns, axis=1)
