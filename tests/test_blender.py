@@ -6,6 +6,7 @@ numpy < 2, as Blender ships) and ``make test`` runs this file there; elsewhere i
 
 from __future__ import annotations
 
+import os
 import zipfile
 from pathlib import Path
 
@@ -347,8 +348,33 @@ def test_a_24_frame_bake_keeps_each_frames_volume(addon):
 # --- the extension package and the pipeline -----------------------------------------------
 
 
-def test_the_extension_package_builds(tmp_path):
-    """``make addon`` (here: this platform's wheels only), validated by Blender's tool."""
+INSTALL = """
+import sys
+import bpy
+
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.extensions.package_install_files(
+    filepath=sys.argv[1], repo="user_default", enable_on_install=True
+)
+import isochor
+
+print("ENABLED", "bl_ext.user_default.isochor" in bpy.context.preferences.addons.keys())
+print("FROM", isochor.__file__)
+sys.path.insert(0, sys.argv[2])
+import tests.test_blender as t  # its scene helpers (no factory reset: it would disable)
+
+ob, lat = t.sphere(subdivisions=2), t.lattice((4, 4, 4), "KEY_BSPLINE")
+ob.modifiers.new("Lattice", "LATTICE").object = lat
+bpy.context.view_layer.objects.active = ob
+t.pin_and_drag(lat, 0.3)
+print("SOLVE", bpy.ops.isochor.preserve_volume())
+print("RATIO", bpy.context.scene.isochor.volume_ratio)
+"""
+
+
+def test_the_extension_package_builds_and_installs(tmp_path):
+    """``make addon`` (here: this platform's wheels only), validated by Blender's tool, then
+    installed into a fresh Blender user folder, enabled, and solving with its own wheels."""
     import subprocess
     import sys
 
@@ -366,6 +392,19 @@ def test_the_extension_package_builds(tmp_path):
     manifest = zipfile.ZipFile(package).read("blender_manifest.toml").decode()
     assert all(f'"./{n}"' in manifest for n in names if n.endswith(".whl"))
     assert "build.py" not in names
+    if not HAS_BASES:
+        return
+    user = tmp_path / "user"
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(user)}
+    run = subprocess.run(
+        [sys.executable, "-c", INSTALL, str(package), str(ROOT)],
+        capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path,
+    )  # fmt: skip
+    said = dict(line.split(" ", 1) for line in run.stdout.splitlines() if line[:1].isupper())
+    assert run.returncode == 0 and said.get("ENABLED") == "True", run.stdout + run.stderr
+    assert said["FROM"].startswith(str(user)), said  # isochor from the extension's wheel
+    assert said["SOLVE"] == "{'FINISHED'}"
+    assert abs(float(said["RATIO"]) - 1) <= TOL_VOLUME + F32_VOLUME
 
 
 def test_blender_imports_the_sequence_glb_with_uvs_and_materials(tmp_path):
