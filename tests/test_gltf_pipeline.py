@@ -221,3 +221,50 @@ def test_every_export_kind_validates(tmp_path):
     assert_valid(*written)
     reloaded = trimesh.load(io.BytesIO(written[1].read_bytes()), file_type="glb", force="mesh")
     assert reloaded.visual.uv is not None  # the UVs kept
+
+
+def test_every_rewrite_of_the_gltf_tests_files_validates(tmp_path):
+    """The files tests/test_gltf.py builds (a sphere, a scene with node transforms and
+    shared accessors, interleaved vertices under a hierarchy, a skinned sphere), rewritten
+    in place, with a morph target, as .gltf, and animated (:func:`animate_gltf`)."""
+    from isochor.core.io.gltf import animate_gltf, rewrite_gltf
+    from tests.test_gltf import DEFORMS, interleaved_glb, scene_glb, sphere_glb
+
+    sources = {
+        "sphere": sphere_glb(),
+        "scene": scene_glb(),
+        "interleaved": interleaved_glb()[0],
+        "skinned": skinned_glb(),
+    }
+    written = []
+    for name, glb in sources.items():
+        for mode, options in {
+            "inplace": {},
+            "morph": {"morph_target": True},
+            "text": {"out_suffix": ".gltf"},
+        }.items():
+            data, _notes = rewrite_gltf(glb, ".glb", *DEFORMS["bend"], **options)
+            path = tmp_path / f"{name}_{mode}.{'gltf' if mode == 'text' else 'glb'}"
+            path.write_bytes(data)
+            written.append(path)
+        data, _notes = animate_gltf(glb, ".glb", [DEFORMS["affine"], DEFORMS["bend"]], 24.0)
+        path = tmp_path / f"{name}_anim.glb"
+        path.write_bytes(data)
+        written.append(path)
+    assert len(written) == 16
+    assert_valid(*written)
+
+
+def test_the_validator_sees_a_broken_file_and_a_lost_image(tmp_path):
+    """The check can fail: an accessor past its buffer, an image that is not there."""
+    doc, blob = glb_json(bytes(textured_sphere().export(file_type="glb")))
+    doc["accessors"][0]["count"] += 10_000
+    (tmp_path / "broken.glb").write_bytes(make_glb(doc, blob))
+    doc, blob = glb_json(bytes(textured_sphere().export(file_type="glb")))
+    image = doc["images"][0]
+    image.pop("bufferView"), image.pop("mimeType", None)
+    image["uri"] = "elsewhere.png"
+    (tmp_path / "lost.glb").write_bytes(make_glb(doc, blob))
+    found = validate(tmp_path / "broken.glb", tmp_path / "lost.glb")
+    assert found["broken.glb"] and found["lost.glb"], found
+    assert any("IO_ERROR" in m for m in found["lost.glb"]), found
