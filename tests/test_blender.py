@@ -183,6 +183,49 @@ def test_the_addon_registers(addon):
     assert bpy.context.scene.isochor.ratio == 1.0
 
 
+class Layout:
+    """A stand-in for Blender's UI layout (none headless) that checks what a panel asks
+    for: properties that exist, operators that are registered."""
+
+    def __init__(self, seen: list):
+        self.seen = seen
+
+    def prop(self, data, name, **_):
+        assert hasattr(data, name), name
+        self.seen.append(name)
+
+    def prop_search(self, data, name, search, collection, **_):
+        assert hasattr(data, name) and hasattr(search, collection), (name, collection)
+        self.seen.append(name)
+
+    def operator(self, idname, **_):
+        group, op = idname.split(".")
+        assert hasattr(getattr(bpy.ops, group), op), idname
+        self.seen.append(idname)
+
+    def label(self, text="", **_):
+        self.seen.append(text)
+
+    def row(self, **_):
+        return self
+
+    box = row
+
+
+def test_the_panel_draws(addon):
+    from types import SimpleNamespace
+
+    ob, lat = rigged((3, 3, 3), "KEY_BSPLINE", subdivisions=1)
+    props = bpy.context.scene.isochor
+    for pins in ("SELECTED", "GROUP"):
+        props.pins = pins
+        seen: list = []
+        bpy.types.VIEW3D_PT_isochor.draw(SimpleNamespace(layout=Layout(seen)), bpy.context)
+        assert {"isochor.preserve_volume", "isochor.live", "isochor.bake"} <= set(seen)
+        assert ("group" in seen) == (pins == "GROUP")
+    props.pins = "SELECTED"
+
+
 def test_bad_input_is_one_line_and_changes_nothing(addon):
     empty_scene()
     ob = sphere()
