@@ -150,8 +150,9 @@ def export_sequence(
         data = source.path.read_bytes()
     else:
         data = model_as_glb(source.path)
+        if suffix == ".obj" and _OBJ_HOLDS["polygons"].search(source.path.read_bytes()):
+            notes.append(f"{path.name} holds {source.path.name}'s polygons as triangles")
         suffix = ".glb"
-        notes.append(f"{path.name} holds {source.path.name} as glTF: its polygons as triangles")
     lattice = surface.lattice
     pairs = [
         (lambda x, n=n: lattice.deform(x, n), lambda x, n=n: lattice.jacobian(x, n))
