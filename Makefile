@@ -2,14 +2,19 @@
 VENV   := .venv
 PY     := $(VENV)/bin/python
 PYTHON ?= python3
+# Blender's bpy (numpy < 2, as Blender ships) in a venv of its own, for the add-on's tests
+BVENV  := .venv-blender
+BPY    := $(BVENV)/bin/python
+# the Khronos glTF validator (npm gltf-validator) the glTF tests run
+JSDEPS := tests/js/node_modules/.installed
 
-.PHONY: venv sysdeps run test test-numpy lint bench assets clean
+.PHONY: venv sysdeps run test test-numpy test-blender lint bench assets addon clean
 
 # Debian system packages (Qt/VTK runtime libs, Xvfb); apt runs only if something is missing.
 sysdeps:
 	@bash .ci/sysdeps
 
-venv: $(VENV)/.installed
+venv: $(VENV)/.installed $(BVENV)/.installed $(JSDEPS)
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -24,11 +29,33 @@ $(VENV)/.installed: pyproject.toml isochor/__init__.py | $(PY)
 	-$(PY) -m isochor.core.kernels --compile
 	touch $@
 
+# bpy has a wheel for Python 3.11 only: elsewhere the Blender tests skip, saying why.
+$(BVENV)/.installed: pyproject.toml isochor/__init__.py
+	@if $(PYTHON) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; then \
+	  $(PYTHON) -m venv $(BVENV) && \
+	  $(BPY) -m pip install --upgrade pip 'setuptools>=68' wheel && \
+	  $(BPY) -m pip install -e '.[test,blender]' && touch $@; \
+	else echo "venv: bpy needs Python 3.11; the Blender tests will skip"; fi
+
+$(JSDEPS): tests/js/package.json tests/js/package-lock.json
+	@if command -v npm >/dev/null; then \
+	  cd tests/js && npm ci --no-audit --no-fund && touch node_modules/.installed; \
+	else echo "venv: no npm; the glTF validator tests will skip (CI installs it)"; fi
+
 run: sysdeps venv
 	$(VENV)/bin/isochor $(ARGS)
 
 test: sysdeps venv
 	$(PY) -m pytest -q $(ARGS)
+
+# the add-on and Blender round-trip tests, in the venv with bpy
+test-blender: venv
+	$(BPY) -m pytest -q -p no:xvfb tests/test_blender.py $(ARGS)
+
+# the Blender extension (add-on) package: dist/isochor-VERSION.zip, wheels for every
+# platform (ARGS=--platform=current: this one only)
+addon: venv
+	$(BPY) blender/build.py $(ARGS)
 
 # the core and API tests on the NumPy path (what an install without numba runs): the
 # compiled kernels switched off, the GUI tests left out
@@ -51,4 +78,4 @@ bench: sysdeps venv
 	$(XVFB) $(PY) -m benchmarks $(ARGS)
 
 clean:
-	rm -rf $(VENV) build dist *.egg-info .pytest_cache out
+	rm -rf $(VENV) $(BVENV) tests/js/node_modules build dist *.egg-info .pytest_cache out

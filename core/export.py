@@ -12,6 +12,10 @@ not to the welded and repaired copy the solver works on:
   deformation as a morph target on the original mesh;
 - **another format, or a built-in shape**: the deformed solver mesh (welded, triangles) is
   written fresh, and a note says what of the model's own file that format does not carry.
+
+A solved sequence as one animated GLB (:func:`export_sequence`) is the model's own file as
+glTF (a glTF as it is; another format converted with its UVs, materials and colours) with
+a morph target per frame and the animation of their weights.
 """
 
 from __future__ import annotations
@@ -121,6 +125,46 @@ def export_file(
     return exported.notes
 
 
+def export_sequence(
+    problem: Problem, frames: list[np.ndarray], path: str | Path, rate: float
+) -> Exported:
+    """One animated GLB of the model deformed by each frame's lattice nodes (``frames``,
+    each (n, 3)) at ``rate`` frames a second: the model's own file kept (mesh, UVs,
+    materials, skin), a morph target per frame, the weights animated
+    (:func:`isochor.core.io.gltf.animate_gltf`). A built-in shape has no file: its solver
+    mesh is animated (:func:`isochor.core.io.gltfanim.animated_glb`)."""
+    from .io.gltf import animate_gltf
+    from .io.gltfanim import animated_glb, model_as_glb
+
+    path, source, surface = Path(path), problem.model.source, problem.surface
+    if source is None:
+        meshes = [surface.deform(nodes) for nodes in frames]
+        return Exported(animated_glb(surface.full.vertices, surface.full.faces, meshes, rate))
+    if not source.unchanged():
+        raise IsochorError(
+            f"{source.path}: the model file changed on disk since it was opened; open it "
+            "again to export it"
+        )
+    suffix, notes = source.path.suffix.lower(), []
+    if suffix in GLTF_FORMATS:
+        data = source.path.read_bytes()
+    else:
+        data = model_as_glb(source.path)
+        if suffix == ".obj" and _OBJ_HOLDS["polygons"].search(source.path.read_bytes()):
+            notes.append(f"{path.name} holds {source.path.name}'s polygons as triangles")
+        suffix = ".glb"
+    lattice = surface.lattice
+    pairs = [
+        (lambda x, n=n: lattice.deform(x, n), lambda x, n=n: lattice.jacobian(x, n))
+        for n in (np.asarray(f, dtype=np.float64) for f in frames)
+    ]
+    data, more = animate_gltf(
+        data, suffix, pairs, rate, name=source.path.name, base_dir=source.path.parent,
+        out_dir=path.parent,
+    )  # fmt: skip
+    return Exported(data, notes + list(more))
+
+
 def _rewrite(
     data: bytes,
     source: Path,
@@ -142,6 +186,7 @@ def _rewrite(
             base_dir=source.parent,
             morph_target=morph_target,
             out_suffix=out.suffix.lower(),  # .glb <-> .gltf: the same content
+            out_dir=out.parent,  # separate images re-pointed from there
         )
         return Exported(new, list(notes))
     from .io.roundtrip import rewrite

@@ -1,8 +1,9 @@
 """``isochor solve SCENARIO --sequence PATTERN``: solve a scenario's keyframed poses
 (:mod:`isochor.core.scenario.sequence`) and write one model file per frame (``frame_####.obj``,
-through the round-trip export) or one animated GLB (``anim.glb``: a morph target per frame
-and the animation of their weights). The outputs and the report are checked before any
-work and written all or none, as for ``--out``."""
+through the round-trip export) or one animated GLB (``anim.glb``: the model's own mesh,
+UVs, materials and skin, a morph target per frame and the animation of their weights). The
+outputs and the report are checked before any work and written all or none, as for
+``--out``."""
 
 from __future__ import annotations
 
@@ -13,9 +14,9 @@ from pathlib import Path
 
 from ...core.api import Session
 from ...core.errors import IsochorError
+from ...core.export import export_sequence
 from ...core.io.atomic import check_outputs, write_outputs
 from ...core.io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
-from ...core.io.gltfanim import animated_glb
 from ...core.report import sequence_report
 from ...core.scenario.sequence import frame_path, solve_sequence
 from ...core.solve.generators import run_to_end
@@ -64,11 +65,10 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
 
     seq = run_to_end(solve_sequence(problem), row)
 
-    surface = problem.surface
     if one_glb:
-        meshes = [surface.deform(f.result.nodes) for f in seq.frames]
-        data = [animated_glb(surface.full.vertices, surface.full.faces, meshes, timeline.rate)]
-        notes: list[str] = []
+        nodes = [f.result.nodes for f in seq.frames]
+        exported = export_sequence(problem, nodes, targets[0][0], timeline.rate)
+        data, notes = [exported.data], list(exported.notes)
     else:
         exported = [
             session.export_bytes(p, nodes=f.result.nodes) for f, (p, _) in zip(seq.frames, targets)

@@ -7,8 +7,10 @@
   (for :mod:`.meshio` and :mod:`.roundtrip`)
 - :mod:`.repair`    weld, drop degenerate triangles, check closed, repair winding, orient
 - :mod:`.roundtrip` rewrite an OBJ/PLY/STL/OFF file: positions deformed, all else kept
-- :mod:`.gltf`      read glTF/GLB; rewrite it deformed, or with a morph target
-- :mod:`.gltfanim`  a solved sequence as one GLB: a morph target per frame, weights animated
+- :mod:`.gltf`      read glTF/GLB; rewrite it deformed, with a morph target, or animated (a
+  morph target per frame, weights animated); separate images re-pointed when written elsewhere
+- :mod:`.gltfanim`  a sequence's GLB: another format's model file as glTF (UVs, materials),
+  or a built-in shape's bare mesh animated
 - :mod:`.atomic`    outputs checked before any work (never an input, a device, a folder), then
   written all or none through temporary files and renames
 

@@ -1,19 +1,23 @@
 """glTF 2.0 (.glb, .gltf): :func:`read_gltf` gives the default scene's world-space triangles;
 :func:`rewrite_gltf` writes the file back deformed, all else kept, buffers merged into one,
-a copy of a mesh for each transform it is used under. Refused in one line naming the file:
-compression, quantized or sparse vertex data, GPU instancing, damaged files."""
+a copy of a mesh for each transform it is used under; :func:`animate_gltf` keeps the file and
+adds one morph target per frame of a sequence with the animation of their weights. Images
+kept as separate files are re-pointed (a relative path from the written file's folder to
+the original) when the file is written to another folder. Refused in one line naming the
+file: compression, quantized or sparse vertex data, GPU instancing, damaged files."""
 
 from __future__ import annotations
 
 import base64
 import copy
 import json
+import os
 import struct
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from urllib.parse import unquote
+from urllib.parse import quote, unquote
 
 import numpy as np
 
@@ -24,6 +28,8 @@ Deform = Callable[[np.ndarray], np.ndarray]  # (k, 3) world points -> (k, 3) def
 Jacobian = Callable[[np.ndarray], np.ndarray]  # (k, 3) -> (k, 3, 3): d deformed_a / d x_b
 
 MAX_BUFFER_BYTES = 2 * 2**30  # the largest external .bin file read
+#: a GLB holds at most 2 GiB (its length field is 32 bits, and readers use that limit)
+MAX_GLB_BYTES = 2**31 - 1
 _JSON, _BIN, _FLOAT = 0x4E4F534A, 0x004E4942, 5126
 _COMPONENTS = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
@@ -67,17 +73,20 @@ def rewrite_gltf(
     base_dir: Path | None = None,
     morph_target: bool = False,
     out_suffix: str | None = None,
+    out_dir: Path | None = None,
 ) -> tuple[bytes, list[str]]:
     """The file (as ``suffix``) with the default scene deformed in world space (local ->
     world by the node's global transform, deform, back), NORMAL by the Jacobian's inverse
     transpose, TANGENT xyz by the Jacobian, renormalised, min/max updated; or, with
     ``morph_target``, as a new morph target "isochor" of weight 1; written as ``out_suffix``
-    (.glb or .gltf; default: as read). And notes for the user, one sentence each."""
+    (.glb or .gltf; default: as read) into ``out_dir`` (default: ``base_dir``; separate
+    images are re-pointed from there). And notes for the user, one sentence each."""
     with _guard(name):
         gltf = _Gltf(data, suffix, name, base_dir)
         gltf.suffix = (out_suffix or suffix).lower()  # the container written
         gltf.merge_buffers()
-        jobs, notes = gltf.plan(morph_target)
+        jobs, notes = gltf.plan(["isochor"] if morph_target else [], 1.0)
+        notes += gltf.repoint_images(base_dir, out_dir)
         points = np.concatenate([old["POSITION"] @ w[:3, :3].T + w[:3, 3] for _, w, old in jobs])
     moved, jac = np.asarray(deform(points), float), np.asarray(jacobian(points), float)
     if moved.shape != points.shape or jac.shape != (len(points), 3, 3):
@@ -94,6 +103,54 @@ def rewrite_gltf(
             else:
                 for sem, values in new.items():
                     gltf.put(prim["attributes"], sem, values, world)
+        return gltf.to_bytes(), notes
+
+
+def animate_gltf(
+    data: bytes,
+    suffix: str,
+    frames: Sequence[tuple[Deform, Jacobian]],
+    rate: float,
+    *,
+    name: str = "model",
+    base_dir: Path | None = None,
+    out_dir: Path | None = None,
+) -> tuple[bytes, list[str]]:
+    """The file as one GLB, all of it kept (mesh, UVs, materials, skin), with one morph
+    target per frame ("frame 0", ...: POSITION, NORMAL, TANGENT deltas of the default
+    scene deformed by that frame's ``(deform, jacobian)``) and an animation "isochor
+    sequence" of the weights: weight 1 on target ``i`` at time ``i / rate``, linear between.
+    And notes for the user, one sentence each."""
+    names = [f"frame {i}" for i in range(len(frames))]
+    with _guard(name):
+        gltf = _Gltf(data, suffix, name, base_dir)
+        gltf.suffix = ".glb"
+        gltf.merge_buffers()
+        jobs, notes = gltf.plan(names, 0.0)
+        notes += gltf.repoint_images(base_dir, out_dir)
+        points = np.concatenate([old["POSITION"] @ w[:3, :3].T + w[:3, 3] for _, w, old in jobs])
+        size = len(gltf.buffers[0]) + 4 * len(frames) * sum(
+            sum(3 * len(v) for v in old.values()) for _, _, old in jobs
+        )
+        if size > MAX_GLB_BYTES:
+            gltf.fail(
+                f"{len(frames)} frames make {size / 2**30:.1f} GB, more than a GLB holds: "
+                "write a sequence of files (frame_####.obj) instead"
+            )
+    cuts = np.cumsum([len(old["POSITION"]) for _, _, old in jobs])[:-1]
+    for deform, jacobian in frames:
+        moved, jac = np.asarray(deform(points), float), np.asarray(jacobian(points), float)
+        if moved.shape != points.shape or jac.shape != (len(points), 3, 3):
+            raise ValueError(f"deform, jacobian gave shapes {moved.shape}, {jac.shape}")
+        with _guard(name):
+            for (prim, world, old), y, j in zip(jobs, np.split(moved, cuts), np.split(jac, cuts)):
+                new = _deformed(world, old, y, j)
+                if not all(np.all(np.abs(v) <= np.finfo(np.float32).max) for v in new.values()):
+                    gltf.fail("the deformed vertices are not finite numbers")
+                deltas = {sem: gltf.append(new[sem][:, :3] - old[sem][:, :3]) for sem in new}
+                prim.setdefault("targets", []).append(deltas)
+    with _guard(name):
+        gltf.animate_weights(len(frames), rate)
         return gltf.to_bytes(), notes
 
 
@@ -238,17 +295,21 @@ class _Gltf:
             stack += [(c, world) for c in reversed(node.get("children", []))]
         return out
 
-    def plan(self, morph: bool) -> tuple[list[tuple[dict, np.ndarray, dict]], list[str]]:
+    def plan(
+        self, targets: list[str], weight: float
+    ) -> tuple[list[tuple[dict, np.ndarray, dict]], list[str]]:
         """(primitive, global transform, original POSITION/NORMAL/TANGENT) to deform, and
-        notes; a mesh used under several transforms is copied first, once for each."""
+        notes; a mesh used under several transforms is copied first, once for each. With
+        ``targets`` (names), each deformed mesh gets as many new morph targets, of
+        ``weight``, and :attr:`morphed` lists (mesh, its nodes) for their animation."""
+        morph = bool(targets)
+        self.morphed: list[tuple[dict, list[int]]] = []
         groups: dict[int, dict[bytes, tuple[np.ndarray, list[int]]]] = {}
         for node, mesh, world in self.instances():
             key = np.round(world, 9).tobytes()
             groups.setdefault(mesh, {}).setdefault(key, (world, []))[1].append(node)
         meshes, nodes = self.doc.get("meshes", []), self.doc.get("nodes", [])
-        images = [i["uri"] for i in self.doc.get("images", []) if ":" not in i.get("uri", ":")]
         notes = [f"the buffer file {uri} is now embedded in the file" for uri in self.external]
-        notes += [f"the images {', '.join(images)} stay separate files beside it"] if images else []
         for i in (i for i in range(len(meshes)) if i not in groups):
             notes.append(f"mesh {_label(meshes, i)} is not in the default scene; it was kept")
             self.kept |= {a for p in meshes[i]["primitives"] for a in p["attributes"].values()}
@@ -274,26 +335,77 @@ class _Gltf:
                     old = {s: self.attribute(attributes, s, _DEFORMED[s]) for s in sems}
                     jobs += [(prim, world, old)] if "POSITION" in old else []
                 if morph:
-                    self._add_weight(mesh, group, label)
+                    self._add_weight(mesh, group, label, targets, weight)
+                    self.morphed.append((mesh, group))
         if not jobs:
             self.fail("no mesh in the default scene to deform")
         return jobs, notes
 
-    def _add_weight(self, mesh: dict, group: list[int], label: str) -> None:
-        """Weight 1 for the new target in the mesh's and nodes' weights; named "isochor"."""
+    def _add_weight(
+        self, mesh: dict, group: list[int], label: str, targets: list[str], weight: float
+    ) -> None:
+        """``weight`` for the new targets in the mesh's and nodes' weights; named ``targets``."""
         before = len(mesh["primitives"][0].get("targets", [])) if mesh["primitives"] else 0
         animated = [c["target"] for a in self.doc.get("animations", []) for c in a["channels"]]
         if any(t.get("path") == "weights" and t.get("node") in group for t in animated):
             self.fail(f"mesh {label}'s morph weights are animated; deform its vertices instead")
         weights, extras = mesh.get("weights"), mesh.setdefault("extras", {})
         known = isinstance(weights, list) and len(weights) == before
-        mesh["weights"] = [*(weights if known else [0.0] * before), 1.0]
+        mesh["weights"] = [*(weights if known else [0.0] * before), *[weight] * len(targets)]
         for node in (self.doc["nodes"][n] for n in group if "weights" in self.doc["nodes"][n]):
-            node["weights"] = [*node["weights"], 1.0]
+            node["weights"] = [*node["weights"], *[weight] * len(targets)]
         if isinstance(extras, dict):
             names = extras.get("targetNames")
             known = isinstance(names, list) and len(names) == before
-            extras["targetNames"] = [*(names if known else ["target"] * before), "isochor"]
+            extras["targetNames"] = [*(names if known else ["target"] * before), *targets]
+
+    def animate_weights(self, count: int, rate: float) -> None:
+        """An animation "isochor sequence" of the last ``count`` morph targets of every
+        morphed mesh: at time ``i / rate`` weight 1 on the ``i``-th, the others as the
+        mesh's defaults; linear between."""
+        times = np.arange(count, dtype=np.float32)[:, None] / np.float32(rate)
+        samplers, channels = [], []
+        for mesh, group in self.morphed:
+            rest = np.asarray(mesh["weights"][: len(mesh["weights"]) - count], np.float32)
+            keys = np.hstack([np.tile(rest, (count, 1)), np.eye(count, dtype=np.float32)])
+            samplers.append(
+                {"input": self.append(times, scalar=True), "interpolation": "LINEAR"}
+                | {"output": self.append(keys.reshape(-1, 1), scalar=True)}
+            )
+            channels += [
+                {"sampler": len(samplers) - 1, "target": {"node": n, "path": "weights"}}
+                for n in group
+            ]
+        animation = {"name": "isochor sequence", "samplers": samplers, "channels": channels}
+        self.doc.setdefault("animations", []).append(animation)
+
+    def repoint_images(self, base_dir: Path | None, out_dir: Path | None) -> list[str]:
+        """Images that are separate files, written into ``out_dir``: their URIs re-pointed
+        to the originals beside the model (a relative path), or embedded where no relative
+        path reaches them (another drive). Notes naming what was done."""
+        images = [i for i in self.doc.get("images", []) if isinstance(i, dict)]
+        files = [i for i in images if isinstance(i.get("uri"), str) and ":" not in i["uri"]]
+        if not files:
+            return []
+        if base_dir is None or out_dir is None or _same_dir(base_dir, out_dir):
+            names = ", ".join(i["uri"] for i in files)
+            return [f"the images {names} stay separate files beside it"]
+        moved, embedded = [], []
+        for image in files:
+            original = Path(base_dir).absolute() / unquote(image["uri"])
+            try:
+                relative = os.path.relpath(original, Path(out_dir).absolute())
+            except ValueError:  # another drive: no relative path
+                relative = None
+            if relative is not None or not original.is_file():
+                image["uri"] = quote(Path(relative or original).as_posix())
+                moved.append(image["uri"])
+                continue
+            mime = "image/png" if original.suffix.lower() == ".png" else "image/jpeg"
+            image["uri"] = f"data:{mime};base64," + base64.b64encode(original.read_bytes()).decode()
+            embedded.append(original.name)
+        notes = [f"its images point at the originals ({', '.join(moved)})"] if moved else []
+        return notes + ([f"the images {', '.join(embedded)} are embedded"] if embedded else [])
 
     def _window(self, index, vertex: bool) -> tuple[np.ndarray, np.dtype]:
         """An accessor's bytes, ``(count, element size)`` uint8 strided, and its type."""
@@ -339,8 +451,9 @@ class _Gltf:
             self.fail("a triangle refers to a vertex that does not exist")
         return idx.astype(np.int64).reshape(-1, 3)
 
-    def append(self, values: np.ndarray, like: dict | None = None) -> int:
-        """A new float accessor holding ``values`` (tightly packed, appended to buffer 0)."""
+    def append(self, values: np.ndarray, like: dict | None = None, scalar: bool = False) -> int:
+        """A new float accessor holding ``values`` (tightly packed, appended to buffer 0),
+        ``(k, 1)`` values as SCALAR with ``scalar``."""
         data = np.ascontiguousarray(values, "<f4")
         size = (len(self.buffers[0]) if self.buffers else 0) + sum(len(b) for b in self.extra)
         self.extra += [bytes(-size % 4), data.tobytes()]
@@ -349,7 +462,8 @@ class _Gltf:
         accessors = self.doc.setdefault("accessors", [])
         accessors.append({k: like[k] for k in ("name", "extras") if like and k in like})
         accessors[-1] |= {"bufferView": len(views) - 1, "componentType": _FLOAT, "count": len(data)}
-        accessors[-1] |= {"type": f"VEC{data.shape[1]}", "min": data.min(0).tolist()}
+        kind = "SCALAR" if scalar else f"VEC{data.shape[1]}"
+        accessors[-1] |= {"type": kind, "min": data.min(0).tolist()}
         accessors[-1]["max"] = data.max(0).tolist()
         return len(accessors) - 1
 
@@ -382,6 +496,13 @@ def _deformed(world: np.ndarray, old: dict, moved: np.ndarray, jac: np.ndarray) 
         turned = _unit(np.einsum("pab,pb->pa", local, old["TANGENT"][:, :3]))
         new["TANGENT"] = np.column_stack([turned, old["TANGENT"][:, 3]])
     return new
+
+
+def _same_dir(a: Path, b: Path) -> bool:
+    try:
+        return Path(a).resolve() == Path(b).resolve()
+    except OSError:
+        return False
 
 
 def _int(value, what: str, least: int = 0, below: int | None = None) -> int:

@@ -3,8 +3,10 @@ target per frame, and an animation of the morph weights (frame ``i`` at time ``i
 has weight 1 on target ``i``, linear between frames). Blender imports it as shape keys with
 their animation; any glTF viewer plays it.
 
-The mesh is the welded triangle mesh Isochor solved (positions only): a sequence of files
-in the model's own format (``####``) keeps the model's UVs, normals and vertex order.
+A model file is animated as itself (:func:`isochor.core.io.gltf.animate_gltf`); one in
+another format first becomes a GLB with its UVs, materials and colours
+(:func:`model_as_glb`). :func:`animated_glb` writes a bare mesh (positions only), for a
+built-in shape that has no file.
 """
 
 from __future__ import annotations
@@ -12,13 +14,13 @@ from __future__ import annotations
 import json
 import struct
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import IsochorError
+from .gltf import MAX_GLB_BYTES
 
-#: a GLB holds at most 2 GiB (its length field is 32 bits, and readers use that limit)
-MAX_GLB_BYTES = 2**31 - 1
 _FLOAT, _UINT = 5126, 5125
 _ARRAY, _ELEMENTS = 34962, 34963
 
@@ -110,3 +112,17 @@ def animated_glb(
             binary,
         ]
     )
+
+
+def model_as_glb(path: Path) -> bytes:
+    """The model file (OBJ, PLY, STL, OFF) as a GLB with what glTF can carry of it: its
+    positions as they are in the file, texture coordinates, materials and their images,
+    vertex colours; polygons as triangles (trimesh's reader and glTF writer)."""
+    import trimesh
+
+    try:
+        loaded = trimesh.load(str(path), process=False, maintain_order=True)
+        return bytes(loaded.export(file_type="glb"))
+    except Exception as exc:  # trimesh raises anything on a file it rejects
+        detail = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
+        raise IsochorError(f"{path.name}: cannot write it as glTF ({detail})") from None

@@ -1,0 +1,29 @@
+"""Isochor for Blender: volume-preserving solves on Blender's own lattice (an extension,
+Blender 4.2+; the manifest is ``blender_manifest.toml``, ``make addon`` builds the zip).
+
+Modules: :mod:`.rig` (the mesh and lattice as arrays, bpy-free: point orders, the Isochor
+session), :mod:`.scene` (reading and checking Blender's data, writing points, volumes),
+:mod:`.solving` (one solve, the live solver, the bake), :mod:`.operators` (Preserve Volume,
+Live, Bake, Measure), :mod:`.panel` (the sidebar panel and its settings), :mod:`.build`
+(the extension package; not shipped in it).
+"""
+
+from __future__ import annotations
+
+import bpy
+
+from . import operators, panel
+
+_CLASSES = panel.CLASSES + operators.CLASSES
+
+
+def register() -> None:
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.isochor = bpy.props.PointerProperty(type=panel.IsochorSettings)
+
+
+def unregister() -> None:
+    del bpy.types.Scene.isochor
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,143 @@
+"""The add-on's operators: Preserve volume (one solve), Live (re-solves while points move),
+Bake (a frame range), Measure (the volume read-out). Each solve is one undo step; bad input
+is one line in the report area and changes nothing."""
+
+from __future__ import annotations
+
+import bpy
+
+from .scene import RigError, Target
+from .solving import LiveSolver, Settings, bake, solve_once
+
+
+def _settings(context) -> Settings:
+    props = context.scene.isochor
+    return Settings(props.pins, props.group, props.ratio)
+
+
+def _errors():
+    """The exceptions that are bad input (one line), not bugs."""
+    from isochor import IsochorError
+
+    return (RigError, IsochorError)
+
+
+def _line(exc: Exception) -> str:
+    """The one line for the report area."""
+    line = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    return line if line.startswith("Isochor:") else f"Isochor: {line}"
+
+
+def measure(context, target: Target) -> None:
+    props = context.scene.isochor
+    rest = target.rest_volume()
+    props.volume = target.evaluated_volume(context.evaluated_depsgraph_get())
+    props.volume_ratio = props.volume / rest if rest else 0.0
+
+
+class ISOCHOR_OT_preserve_volume(bpy.types.Operator):
+    """Solve the free lattice points so the mesh keeps its volume (or the target ratio)"""
+
+    bl_idname = "isochor.preserve_volume"
+    bl_label = "Preserve Volume"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        try:
+            target = Target.of(context.active_object)
+            error = solve_once(target, _settings(context))
+        except _errors() as exc:
+            self.report({"ERROR"}, _line(exc))
+            return {"CANCELLED"}
+        measure(context, target)
+        self.report({"INFO"}, f"Isochor: volume kept within {abs(error):.1e}")
+        return {"FINISHED"}
+
+
+class ISOCHOR_OT_measure(bpy.types.Operator):
+    """Measure the volume of the mesh as Blender evaluates it"""
+
+    bl_idname = "isochor.measure"
+    bl_label = "Measure Volume"
+
+    def execute(self, context):
+        try:
+            measure(context, Target.of(context.active_object))
+        except _errors() as exc:
+            self.report({"ERROR"}, _line(exc))
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+class ISOCHOR_OT_bake(bpy.types.Operator):
+    """Solve every frame of the keyframed lattice points over the range and key the result"""
+
+    bl_idname = "isochor.bake"
+    bl_label = "Bake"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        props = context.scene.isochor
+        try:
+            target = Target.of(context.active_object)
+            errors = bake(target, _settings(context), props.frame_start, props.frame_end)
+        except _errors() as exc:
+            self.report({"ERROR"}, _line(exc))
+            return {"CANCELLED"}
+        measure(context, target)
+        worst = max(abs(e) for e in errors)
+        self.report({"INFO"}, f"Isochor: baked {len(errors)} frames, volume within {worst:.1e}")
+        return {"FINISHED"}
+
+
+class ISOCHOR_OT_live(bpy.types.Operator):
+    """Re-solve while pinned lattice points move (Esc stops)"""
+
+    bl_idname = "isochor.live"
+    bl_label = "Live"
+    bl_options = {"REGISTER", "UNDO"}
+
+    _solver: LiveSolver | None = None
+    _timer = None
+
+    def invoke(self, context, event):
+        props = context.scene.isochor
+        if props.live:  # pressed again: stop
+            props.live = False
+            return {"CANCELLED"}
+        try:
+            self._solver = LiveSolver(Target.of(context.active_object), _settings(context))
+        except _errors() as exc:
+            self.report({"ERROR"}, _line(exc))
+            return {"CANCELLED"}
+        props.live = True
+        self._timer = context.window_manager.event_timer_add(0.04, window=context.window)
+        context.window_manager.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        props = context.scene.isochor
+        if event.type == "ESC" or not props.live:
+            return self._end(context)
+        if event.type == "TIMER":
+            try:
+                running = self._solver.tick()
+            except _errors() as exc:
+                self.report({"ERROR"}, _line(exc))
+                return self._end(context)
+            if not running and self._solver.last is not None:
+                measure(context, self._solver.target)
+            if context.area is not None:
+                context.area.tag_redraw()
+        return {"PASS_THROUGH"}
+
+    def _end(self, context):
+        context.scene.isochor.live = False
+        if self._timer is not None:
+            context.window_manager.event_timer_remove(self._timer)
+        if self._solver is not None:
+            self._solver.stop()
+        return {"FINISHED"}
+
+
+CLASSES = (ISOCHOR_OT_preserve_volume, ISOCHOR_OT_measure, ISOCHOR_OT_bake, ISOCHOR_OT_live)

@@ -1,0 +1,147 @@
+"""The add-on's solves on a :class:`~.scene.Target`: one solve, the live solver that
+re-solves while pinned points move (coarse levels first), and the bake of a frame range.
+Nothing is written to Blender's data until a solve has converged."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+from .rig import isochor_order
+from .scene import BAKED, RigError, Target
+
+
+@dataclass
+class Settings:
+    """What the panel sets: where the pins come from and the volume to keep."""
+
+    pins: str = "SELECTED"  #: "SELECTED" points or a vertex "GROUP"
+    group: str = ""
+    ratio: float = 1.0  #: the target volume / the rest volume
+
+
+def _failure(result) -> str | None:
+    if result.converged:
+        return None
+    return f"Isochor: the solve did not converge ({result.message}); nothing was changed"
+
+
+def solve_once(target: Target, settings: Settings) -> float:
+    """Solve the free points so the mesh under the modifier has ``ratio`` times its rest
+    volume; write them. Returns the relative volume error Isochor measured."""
+    rig = target.rig(settings.pins, settings.group)
+    if not rig.pinned.any():
+        raise RigError("Isochor: pin some lattice points first (select them, or a vertex group)")
+    if rig.pinned.all():
+        raise RigError("Isochor: every lattice point is pinned; nothing is free to solve")
+    session = rig.session(settings.ratio)
+    result = session.solve()
+    failure = _failure(result)
+    if failure:
+        raise RigError(failure)
+    target.write(rig.shown(session, result.nodes), rig.written())
+    return float(result.rel_volume_error)
+
+
+class LiveSolver:
+    """Re-solves while the pinned points move: :meth:`tick` (called by a timer) restarts
+    the solve when a pin moved or the pins changed, and runs it for a time budget, writing
+    each level's nodes as it comes (the coarse ones first)."""
+
+    def __init__(self, target: Target, settings: Settings) -> None:
+        self.target, self.settings = target, settings
+        self.rig = target.rig(settings.pins, settings.group)
+        self.session = self.rig.session(settings.ratio)
+        self.steps = None
+        self.seen: tuple[bytes, bytes] | None = None
+        self.solves = 0  #: solves finished
+        self.last = None  #: the last finished result
+
+    def _pins(self) -> tuple[np.ndarray, np.ndarray]:
+        points = self.target.points()
+        return self.target.pinned(self.settings.pins, self.settings.group), points
+
+    def tick(self, budget: float = 0.03) -> bool:
+        """One timer tick; True while a solve is running."""
+        pinned, points = self._pins()
+        key = (pinned.tobytes(), points[pinned].tobytes())
+        if key != self.seen and pinned.any() and not pinned.all():
+            self.seen = key
+            if self.steps is not None:
+                self.steps.close()
+            shape = self.rig.shape
+            self.rig.nodes = isochor_order(points, shape)
+            self.rig.pinned = isochor_order(pinned, shape)
+            self.rig.load(self.session)
+            self.steps = self.session.steps()
+        if self.steps is None:
+            return False
+        t0, record = time.perf_counter(), None
+        free = self.rig.written()
+        try:
+            while record is None or time.perf_counter() - t0 < budget:  # a step at least
+                record = next(self.steps)
+        except StopIteration as done:
+            self.steps, self.last = None, done.value
+            self.solves += 1
+            if done.value.converged:
+                self.target.write(self.rig.shown(self.session, done.value.nodes), free)
+            return False
+        if record is not None:
+            self.target.write(self.rig.shown(self.session, record.nodes), free)
+        return True
+
+    def stop(self) -> None:
+        if self.steps is not None:
+            self.steps.close()
+            self.steps = None
+
+
+def bake(target: Target, settings: Settings, start: int, end: int) -> list[float]:
+    """Solve every frame ``start..end`` of the keyframed lattice points (pins: the keyed
+    points and the panel's), each from the frame before, then key the free points' solved
+    positions on every frame. Returns each frame's relative volume error. Nothing is keyed
+    when a frame fails."""
+    scene = bpy.context.scene
+    if end < start:
+        raise RigError(f"Isochor: the bake range {start}..{end} is empty")
+    keyed = target.keyed()
+    if not keyed.any():
+        raise RigError("Isochor: no lattice point has keyframes; key the moves to bake first")
+    here, solved, errors = scene.frame_current, [], []
+    session, previous = None, None
+    try:
+        for frame in range(start, end + 1):
+            scene.frame_set(frame)
+            rig = target.rig(settings.pins, settings.group, extra_pins=keyed)
+            if rig.pinned.all():
+                raise RigError("Isochor: every lattice point is pinned; nothing is free to solve")
+            if session is None:
+                session = rig.session(settings.ratio)
+            else:
+                rig.load(session)
+            if previous is not None:  # warm start: the free points where the frame before left them
+                free = ~rig.pinned
+                session.nodes[free] = previous[free]
+            result = session.solve()
+            failure = _failure(result)
+            if failure:
+                raise RigError(f"{failure} (frame {frame})")
+            previous = np.array(result.nodes)
+            solved.append((frame, rig.shown(session, previous), rig))
+            errors.append(float(result.rel_volume_error))
+    finally:
+        scene.frame_set(here)
+    points = target.lattice.data.points
+    for frame, nodes, rig in solved:
+        free = rig.written()
+        target.write(nodes, free)
+        for i in np.flatnonzero(free):
+            points[int(i)].keyframe_insert("co_deform", frame=frame, group="Isochor")
+    free_all = np.flatnonzero(solved[0][2].written())
+    target.lattice[BAKED] = sorted(set(target.lattice.get(BAKED, [])) | set(map(int, free_all)))
+    scene.frame_set(here)
+    return errors
