@@ -79,10 +79,10 @@ def arrange(
         return Arrangement(inside, (), False)
 
     probe = np.stack([b[0].mean(axis=0) for b in body])  # one triangle centre per body
-    for a, b in pairs:
-        inside[a, b] = _inside(probe[a : a + 1], body[b])[0]
-        inside[b, a] = _inside(probe[b : b + 1], body[a])[0]
     rng = np.random.default_rng(0)
+    for a, b in pairs:
+        inside[a, b] = _inside(probe[a : a + 1], body[b])[0] and _within(body[a], body[b], rng)
+        inside[b, a] = _inside(probe[b : b + 1], body[a])[0] and _within(body[b], body[a], rng)
     overlaps = []
     for a, b in pairs:
         if inside[a, b] or inside[b, a]:
@@ -105,6 +105,16 @@ def _overlap(vertices, faces, labels, a, b, body, lo, hi, rng) -> bool:
             return True
     common = box_lo + rng.random((SAMPLES, 3)) * (box_hi - box_lo)
     return bool(np.any(_inside(common, body[a]) & _inside(common, body[b])))
+
+
+def _within(mine: np.ndarray, other: np.ndarray, rng) -> bool:
+    """No sampled corner of ``mine`` lies clearly outside ``other``: a body whose one probe
+    is inside another but which pokes out of it (a shifted copy) overlaps it, it is not a
+    cavity in it."""
+    corners = mine.reshape(-1, 3)
+    if len(corners) > SAMPLES:
+        corners = corners[rng.choice(len(corners), SAMPLES, replace=False)]
+    return bool(np.all(np.abs(winding_numbers(corners, other)) > 1 - INSIDE))
 
 
 def _inside(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:

@@ -66,8 +66,9 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
 
     surface = problem.surface
     if one_glb:
-        meshes = [surface.deform(f.result.nodes) for f in seq.frames]
-        data = [animated_glb(surface.full.vertices, surface.full.faces, meshes, timeline.rate)]
+        own = surface.full.own  # (never the caps over its holes)
+        meshes = [surface.deform(f.result.nodes)[: own.n_vertices] for f in seq.frames]
+        data = [animated_glb(own.vertices, own.faces, meshes, timeline.rate)]
         notes: list[str] = []
     else:
         exported = [
