@@ -138,7 +138,7 @@ def clean_closed_surface(
         warns += _capped_words(vertices, faces, labels, n_bodies, about_middle, n_cap_faces)
     volume = float(about_middle.sum())
     if not volume > 1e-9 * np.abs(about_middle).sum():
-        raise IsochorError("the surface encloses no volume (it is flat)")
+        raise IsochorError("the surface encloses no volume (it is flat): there is no solid to keep")
     far = far_vertices(vertices)
     # the lattice measures about the middle of the bounding box: a few far vertices move
     # it so far from the rest that the volume drowns in rounding there

@@ -169,11 +169,17 @@ def cup(segments: int, rings: int, radius: float = 1.0) -> TriMesh:
     of ``segments`` vertices on the profile (the bottom's centre apart), wound outward."""
     t = np.linspace(0.0, 1.0, rings + 1)[1:]  # the profile past the bottom's centre
     base = 0.35  # the first third of the profile is the bottom
-    r = np.where(t <= base, 0.7 * t / base, 0.7 + 0.3 * np.clip((t - base) / (1 - base), 0, 1) ** 1.5)
+    r = np.where(
+        t <= base, 0.7 * t / base, 0.7 + 0.3 * np.clip((t - base) / (1 - base), 0, 1) ** 1.5
+    )
     z = np.where(t <= base, 0.0, 1.6 * (t - base) / (1 - base))
     angle = 2 * pi * np.arange(segments) / segments
     ring = np.stack(
-        [np.outer(r, np.cos(angle)), np.outer(r, np.sin(angle)), np.repeat(z, segments).reshape(rings, -1)],
+        [
+            np.outer(r, np.cos(angle)),
+            np.outer(r, np.sin(angle)),
+            np.repeat(z, segments).reshape(rings, -1),
+        ],
         axis=-1,
     ).reshape(-1, 3)
     verts = radius * np.vstack([[0.0, 0.0, 0.0], ring])
