@@ -236,5 +236,6 @@ def boundary_sides(faces: np.ndarray, counts: np.ndarray, edge_of_corner: np.nda
 
 def areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(f,) triangle areas."""
-    t = vertices[faces]
-    return np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1) / 2
+    a = vertices[faces[:, 0]]
+    n = np.cross(vertices[faces[:, 1]] - a, vertices[faces[:, 2]] - a)
+    return np.sqrt(np.einsum("ij,ij->i", n, n)) / 2

@@ -38,7 +38,7 @@ from scipy.sparse.csgraph import connected_components
 from ..bodies import arrange, orient, tetra_volumes
 from ..errors import IsochorError
 from ..mesh import TriMesh
-from .caps import areas, boundary_sides, cap_holes, split_non_manifold, summary
+from .caps import CapSummary, areas, boundary_sides, cap_holes, split_non_manifold
 
 #: vertices closer than this fraction of the model size are one vertex
 WELD_TOLERANCE = 1e-9
@@ -135,7 +135,11 @@ def clean_closed_surface(
     # flat: the signed volume is lost in the rounding of the triangles' own volumes
     about_middle = tetra_volumes(vertices, faces, origin=np.median(vertices, axis=0))
     if n_caps:
-        warns += _capped_words(vertices, faces, labels, n_bodies, about_middle, n_cap_faces)
+        area = areas(vertices, faces)
+        warns += _capped_words(labels, n_bodies, about_middle, area, len(faces) - n_cap_faces)
+        own = len(faces) - n_cap_faces
+        capped = CapSummary(n_caps, n_cap_faces, float(area[own:].sum()), float(area[:own].sum()))
+        warns.insert(0, capped.sentence())
     volume = float(about_middle.sum())
     if not volume > 1e-9 * np.abs(about_middle).sum():
         raise IsochorError("the surface encloses no volume (it is flat): there is no solid to keep")
@@ -152,10 +156,7 @@ def clean_closed_surface(
             f"{far} vertex(es) lie far from the rest, more than {FAR:g} times the model's "
             "typical size away (a damaged file?); the lattice is fitted around them too."
         )
-    mesh = TriMesh(vertices, faces, cap_vertices=n_caps, cap_faces=n_cap_faces)
-    if n_caps:
-        warns.insert(0, summary(mesh).sentence())
-    return mesh, warns, n_bodies
+    return TriMesh(vertices, faces, n_caps, n_cap_faces), warns, n_bodies
 
 
 def overlap_words(vertices, faces, labels, n_bodies: int, arrangement) -> list[str]:
@@ -195,14 +196,14 @@ def overlap_words(vertices, faces, labels, n_bodies: int, arrangement) -> list[s
 FLAT_CAPPED = 1e-6
 
 
-def _capped_words(vertices, faces, labels, n_bodies, tetra, n_cap_faces) -> list[str]:
+def _capped_words(labels, n_bodies, tetra, face_area, own_faces: int) -> list[str]:
     """Refuse when no capped body encloses a volume (a flat open sheet, loose triangles);
     a sentence for the flat open pieces among solid ones."""
     capped = np.zeros(n_bodies, dtype=bool)
-    capped[labels[len(faces) - n_cap_faces :]] = True
+    capped[labels[own_faces:]] = True
     volume = np.abs(np.bincount(labels, weights=tetra, minlength=n_bodies))
     rounding = np.bincount(labels, weights=np.abs(tetra), minlength=n_bodies)
-    area = np.bincount(labels, weights=areas(vertices, faces), minlength=n_bodies)
+    area = np.bincount(labels, weights=face_area, minlength=n_bodies)
     flat = capped & ((volume <= 1e-9 * rounding) | (volume <= FLAT_CAPPED * area**1.5))
     if flat.all():
         if n_bodies == 1:
@@ -535,8 +536,8 @@ def fix_winding(faces: np.ndarray, report: EdgeReport) -> tuple[np.ndarray, int]
     IsochorError
         The surface cannot be oriented (a Moebius-like surface).
     """
-    if report.unbalanced == 0:
-        return faces, 0
+    if report.unbalanced == 0 or not np.any(report.balance[report.counts >= 2]):
+        return faces, 0  # (a hole's rim is run one way only: that needs no flip)
     a, b, same = _face_pairs(report)
     n = len(faces)
     # state s of face f is node f + s*n; same direction on a shared edge = one of them flips
