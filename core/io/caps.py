@@ -227,11 +227,12 @@ def cap_holes(vertices: np.ndarray, faces: np.ndarray, boundary_sides: np.ndarra
     return points, cap_faces, loop_of_edge, n_loops
 
 
-def boundary_sides(faces: np.ndarray, counts: np.ndarray, edge_of_corner: np.ndarray) -> np.ndarray:
-    """(k, 2) the face sides (a -> b, as their triangle runs them) on edges with one triangle."""
+def boundary_sides(faces: np.ndarray, counts: np.ndarray, edge_of_corner: np.ndarray):
+    """The face sides on edges with one triangle: ((k, 2) a -> b as their triangle runs
+    them, (k,) that triangle)."""
     on_boundary = counts[edge_of_corner] == 1
     f, s = np.nonzero(on_boundary)
-    return np.stack([faces[f, s], faces[f, (s + 1) % 3]], axis=1)
+    return np.stack([faces[f, s], faces[f, (s + 1) % 3]], axis=1), f
 
 
 def areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -114,15 +114,15 @@ def clean_closed_surface(
         )
         report = EdgeReport.of(faces, len(vertices))
     n_caps = n_cap_faces = 0
+    labels, n_bodies = body_labels(faces, report)
     if report.boundary:
-        points, cap_faces, _, n_caps = cap_holes(
-            vertices, faces, boundary_sides(faces, report.counts, report.edge_of_corner)
-        )
+        sides, side_face = boundary_sides(faces, report.counts, report.edge_of_corner)
+        points, cap_faces, loop_of_side, n_caps = cap_holes(vertices, faces, sides)
         n_cap_faces = len(cap_faces)
         vertices = np.concatenate([vertices, points])
         faces = np.concatenate([faces, cap_faces])
-        report = EdgeReport.of(faces, len(vertices))
-    labels, n_bodies = body_labels(faces, report)
+        # a cap joins the bodies around its loop (no new edge report needed)
+        labels, n_bodies = _join_caps(labels, n_bodies, labels[side_face], loop_of_side, n_caps)
     arrangement = arrange(vertices, faces, labels, n_bodies)
     faces, turned_out, turned_in = orient(vertices, faces, labels, arrangement.depth)
     warns += _orientation_words(n_bodies, turned_out, turned_in)
@@ -157,6 +157,17 @@ def clean_closed_surface(
             "typical size away (a damaged file?); the lattice is fitted around them too."
         )
     return TriMesh(vertices, faces, n_caps, n_cap_faces), warns, n_bodies
+
+
+def _join_caps(labels, n_bodies, body_of_side, loop_of_side, n_loops):
+    """Body labels of the capped mesh: each loop's cap faces joined to the bodies whose
+    faces its rim runs along (bodies still numbered in order of their first face)."""
+    graph = sp.coo_matrix(
+        (np.ones(len(body_of_side)), (body_of_side, n_bodies + loop_of_side)),
+        shape=(n_bodies + n_loops, n_bodies + n_loops),
+    )
+    _, comp = connected_components(graph, directed=False)
+    return np.concatenate([comp[labels], comp[n_bodies + loop_of_side]]), int(comp.max()) + 1
 
 
 def overlap_words(vertices, faces, labels, n_bodies: int, arrangement) -> list[str]:
