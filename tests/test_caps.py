@@ -36,9 +36,10 @@ CAP_SLACK = 2e-4
 
 
 # -- the independent measure -------------------------------------------------------------------
-def capped_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
+def capped_volume(vertices: np.ndarray, faces: np.ndarray, apex=None) -> float:
     """Signed volume of a triangle set closed by a fan over every loop of unmatched edges,
-    by positions only (welded on a 1e-9 grid of the size)."""
+    by positions only (welded on a 1e-9 grid of the size). The fan's point is the mean of
+    the loop's vertices, or ``apex(indices of the loop's vertices in vertices)``."""
     v = np.asarray(vertices, dtype=np.float64)
     size = float(np.ptp(v, axis=0).max())
     _, first, inverse = np.unique(
@@ -66,9 +67,10 @@ def capped_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     tris = [points[f[:, 0]], points[f[:, 1]], points[f[:, 2]]]
     volume = float(np.einsum("ij,ij->i", tris[0], np.cross(tris[1], tris[2])).sum())
     for edges in loops.values():
-        apex = points[np.unique(np.array(edges))].mean(axis=0)
+        loop = np.unique(np.array(edges))
+        top = points[loop].mean(axis=0) if apex is None else apex(first[loop]) - v.mean(axis=0)
         a, b = np.array(edges).T
-        volume += float(np.einsum("ij,ij->i", points[b], np.cross(points[a], apex[None])).sum())
+        volume += float(np.einsum("ij,ij->i", points[b], np.cross(points[a], top[None])).sum())
     return volume / 6
 
 
@@ -309,3 +311,43 @@ def test_the_cup_example_keeps_its_capacity(capsys):
     assert "capped: 1 hole(s)" in out
     error = float(out.split("error ")[1].split(")")[0])
     assert abs(error) <= TOL
+
+
+def test_the_api_opens_an_open_mesh_in_memory_the_same_way():
+    ball = _sphere(1.0, level=3)
+    faces = ball.faces[ball.triangles_center[:, 2] < 0.5]  # a bowl: one hole
+    bowl = trimesh.Trimesh(ball.vertices, faces, process=False)
+    result = isochor.deform(bowl, (3, 3, 3), moves={(1, 1, 2): (0, 0, -0.3)})
+    assert isinstance(result.mesh, trimesh.Trimesh)
+    assert len(result.mesh.faces) == len(faces)  # the caller's faces, no caps
+    assert result.report["caps"]["holes"] == 1
+    assert abs(result.report["relative_volume_error"]) <= TOL
+    # the same edit in a session, measured with a cap point of our own (the rim's mean at
+    # rest) moved by the lattice like every vertex: the cap deforms with the space over
+    # the hole (a flat fan over the moved rim holds less where the lattice bends there)
+    session = isochor.Session(bowl, (3, 3, 3))
+    session.move((1, 1, 2), by=(0, 0, -0.3))
+    session.solve()
+    moved = session.mesh.vertices
+
+    def apex(loop):
+        return session.lattice.deform(ball.vertices[loop].mean(axis=0)[None], session.nodes)[0]
+
+    before = capped_volume(ball.vertices, faces)
+    after = capped_volume(moved, faces, apex)
+    assert after == pytest.approx(before, rel=TOL + CAP_SLACK)
+    flat = capped_volume(moved, faces)  # a flat cap over the moved rim: not what is kept
+    assert abs(flat / before - 1) > 10 * TOL
+
+
+def test_gltf_meshes_touching_are_kept_apart(tmp_path):
+    """Two boxes sharing an edge, each its own glTF mesh: never welded into one."""
+    scene = trimesh.Scene()
+    scene.add_geometry(trimesh.creation.box(), geom_name="a")
+    scene.add_geometry(trimesh.creation.box().apply_translation((1, 1, 0)), geom_name="b")
+    path = tmp_path / "two.glb"
+    path.write_bytes(scene.export(file_type="glb"))
+    loaded = load_mesh(path)
+    assert loaded.bodies == 2 and loaded.mesh.cap_faces == 0
+    assert any("Kept 2 separate objects" in w for w in loaded.warnings), loaded.warnings
+    assert loaded.volume == pytest.approx(2.0, rel=1e-12)
