@@ -351,3 +351,21 @@ def test_gltf_meshes_touching_are_kept_apart(tmp_path):
     assert loaded.bodies == 2 and loaded.mesh.cap_faces == 0
     assert any("Kept 2 separate objects" in w for w in loaded.warnings), loaded.warnings
     assert loaded.volume == pytest.approx(2.0, rel=1e-12)
+
+
+def test_obj_objects_that_touch_are_kept_apart(tmp_path):
+    """Two cubes sharing an edge, each an ``o``: kept apart as the file's objects (not
+    welded, so not split either)."""
+    lines, offset = [], 1
+    for name, shift in (("a", (0, 0, 0)), ("b", (1, 1, 0))):
+        cube = trimesh.creation.box().apply_translation(shift)
+        lines.append(f"o {name}")
+        lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in cube.vertices.tolist()]
+        lines += ["f " + " ".join(str(i + offset) for i in tri) for tri in cube.faces.tolist()]
+        offset += len(cube.vertices)
+    path = tmp_path / "cubes.obj"
+    path.write_text("\n".join(lines) + "\n")
+    loaded = load_mesh(path)
+    assert loaded.bodies == 2 and loaded.volume == pytest.approx(2.0, rel=1e-12)
+    assert any("Kept 2 separate objects" in w for w in loaded.warnings), loaded.warnings
+    assert not any("non-manifold" in w for w in loaded.warnings)

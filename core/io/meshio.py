@@ -147,7 +147,7 @@ def file_objects(kind: str, data: bytes, vertices: np.ndarray, faces: np.ndarray
     """(f,) the file's object of each triangle as trimesh read them: an OBJ's ``o``/``g``
     objects, an ASCII STL's ``solid`` blocks; None for one object, or when the file's
     triangles cannot be matched one to one with what was read (nothing is assumed)."""
-    if kind == "obj" and _OBJ_OBJECT.search(data):
+    if kind == "obj" and len(_OBJ_OBJECT.findall(data)) > 1:
         part, per_face, first = 0, [], []
         points: list[bytes] = []
         for line in data.splitlines():
@@ -158,20 +158,22 @@ def file_objects(kind: str, data: bytes, vertices: np.ndarray, faces: np.ndarray
                 part += 1
             elif head in (b"f ", b"f\t"):
                 corners = line.split()[1:]
-                per_face += [part] * max(len(corners) - 2, 0)
-                first += [corners[0]] * max(len(corners) - 2, 0) if corners else []
-        if len(per_face) != len(faces) or not per_face:
+                n = max(len(corners) - 2, 0)
+                per_face += [part] * n
+                first += [(corners[0], len(points))] * n  # (a negative index counts back)
+        if len(per_face) != len(faces) or not per_face or len(set(per_face)) < 2:
             return None
-        try:  # the first corner of each triangle must be where trimesh put it
-            index = np.array([int(c.split(b"/")[0]) for c in first])
-            index = np.where(index < 0, len(points) + index, index - 1)
-            coords = np.array(
-                [[float(x) for x in points[i].split()[1:4]] for i in np.unique(index)]
-            )
+        # the first corner of (a sample of) the triangles must be where trimesh put it
+        sample = np.unique(np.linspace(0, len(first) - 1, min(len(first), 2000)).astype(int))
+        try:
+            coords = []
+            for k in sample:
+                token, seen = first[k]
+                i = int(token.split(b"/")[0])
+                coords.append([float(x) for x in points[seen + i if i < 0 else i - 1].split()[1:4]])
         except (ValueError, IndexError):
             return None
-        _, where = np.unique(index, return_inverse=True)
-        if not np.allclose(coords[where], vertices[faces[:, 0]], rtol=0, atol=0):
+        if not np.array_equal(np.array(coords), vertices[faces[sample, 0]]):
             return None
         return np.asarray(per_face)
     if kind == "stl" and len(_STL_SOLIDS.findall(data)) > 1:
