@@ -96,9 +96,15 @@ def _overlap(vertices, faces, labels, a, b, body, lo, hi, rng) -> bool:
     """Some point is strictly inside both: a vertex of one inside the other, or a point of
     the two boxes' common part inside both."""
     box_lo, box_hi = np.maximum(lo[a], lo[b]), np.minimum(hi[a], hi[b])
+    if np.any(box_hi - box_lo <= 1e-12 * np.max(hi - lo)):
+        return False  # boxes that only touch (a face, an edge, a corner): no common volume
     for mine, other in ((a, b), (b, a)):
         points = vertices[np.unique(faces[labels == mine])]
         near = points[np.all((points >= lo[other]) & (points <= hi[other]), axis=1)]
+        # a corner the two share (bodies that touch) is on the other's surface, where the
+        # winding number is not defined: not a sign of overlap
+        corners = {tuple(p) for p in vertices[np.unique(faces[labels == other])].tolist()}
+        near = near[[tuple(p) not in corners for p in near.tolist()]]
         if len(near) > SAMPLES:
             near = near[rng.choice(len(near), SAMPLES, replace=False)]
         if len(near) and np.any(_inside(near, body[other])):

@@ -233,9 +233,20 @@ def test_non_manifold_edges_are_split_into_sheets():
     mesh, words, bodies = clean_closed_surface(v, f)
     assert bodies == 2 and mesh.cap_faces == 0
     assert any("non-manifold" in w and "1 non-manifold edge" in w for w in words)
+    assert not any("overlap" in w for w in words)  # they touch along an edge only
     report = EdgeReport.of(mesh.faces, mesh.n_vertices)
     assert report.boundary == 0 and report.non_manifold == 0
     assert capped_volume(mesh.vertices, mesh.faces) == pytest.approx(2.0, rel=1e-12)
+    # a fin on a cube's edge (three triangles there): the cube's own two walls pair up,
+    # the fin is cut off as a flat open piece that holds nothing
+    for side in (0, 1, 2):
+        edge = a.faces[3][[side, (side + 1) % 3]]
+        tip = a.vertices[edge].mean(axis=0) + 2.0
+        v = np.vstack([a.vertices, tip])
+        f = np.vstack([a.faces, [[edge[0], edge[1], len(a.vertices)]]])
+        mesh, words, bodies = clean_closed_surface(v, f)
+        assert bodies == 2 and any("flat sheets" in w for w in words), words
+        assert capped_volume(mesh.vertices, mesh.faces) == pytest.approx(1.0, rel=1e-12)
 
 
 def test_two_overlapping_copies_are_named_as_copies_not_flat():

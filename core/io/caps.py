@@ -111,12 +111,17 @@ def split_non_manifold(faces: np.ndarray, vertices: np.ndarray, counts, edge_of_
     pair_v = [np.stack([np.minimum(a2[0::2], b2[0::2]), np.maximum(a2[0::2], b2[0::2])], axis=1)]
     many = np.flatnonzero(counts[edges] > 2)
     cut = 0
+    # the sheets the manifold edges make: faces of one sheet pair first around an edge
+    joined2 = sp.coo_matrix(
+        (np.ones(len(pair_f[0])), (pair_f[0][:, 0], pair_f[0][:, 1])), shape=(n_faces, n_faces)
+    )
+    sheet = connected_components(joined2, directed=False)[1]
     if len(many):
         by_edge = many[np.argsort(edges[many], kind="stable")]
         starts = np.flatnonzero(np.r_[True, edges[by_edge][1:] != edges[by_edge][:-1]])
         cut = len(starts)
         for group in np.split(by_edge, starts[1:]):
-            joined = _pair_around_edge(vertices, faces, face[group], a[group], b[group])
+            joined = _pair_around_edge(vertices, faces, face[group], a[group], b[group], sheet)
             if len(joined):
                 pair_f.append(joined)
                 lo, hi = min(a[group[0]], b[group[0]]), max(a[group[0]], b[group[0]])
@@ -150,10 +155,11 @@ def split_non_manifold(faces: np.ndarray, vertices: np.ndarray, counts, edge_of_
     return out_vertices, out_faces, cut
 
 
-def _pair_around_edge(vertices, faces, group_faces, a, b) -> np.ndarray:
-    """(k, 2) pairs of the triangles on one non-manifold edge that bound one wedge: sorted
-    by angle about the edge, each joined to an angular neighbour running the edge the
-    other way (the offset, 0 or 1, that pairs the most such neighbours)."""
+def _pair_around_edge(vertices, faces, group_faces, a, b, sheet) -> np.ndarray:
+    """(k, 2) pairs of the triangles on one non-manifold edge that bound one wedge, each
+    pair running the edge both ways: first two of one sheet (joined elsewhere by manifold
+    edges: one solid's two walls), then angular neighbours about the edge (around the
+    cycle), greedily; a triangle left over is cut off along the edge."""
     lo, hi = min(a[0], b[0]), max(a[0], b[0])
     p, q = vertices[lo], vertices[hi]
     axis = q - p
@@ -165,20 +171,25 @@ def _pair_around_edge(vertices, faces, group_faces, a, b) -> np.ndarray:
     tri = faces[group_faces]
     third = np.where((tri != lo) & (tri != hi), tri, -1).max(axis=1)
     d = vertices[third] - p
-    angle = np.arctan2(d @ w, d @ u)
-    order = np.argsort(angle, kind="stable")
-    forward = (a < b)[order]
+    order = [int(i) for i in np.argsort(np.arctan2(d @ w, d @ u), kind="stable")]
+    forward = a < b
     k = len(order)
-    best = np.zeros((0, 2), dtype=np.int64)
-    for offset in (0, 1):
-        pairs = []
-        for i in range(offset, offset + k - 1, 2):
-            j, n = i % k, (i + 1) % k
-            if forward[j] != forward[n]:
-                pairs.append((group_faces[order[j]], group_faces[order[n]]))
-        if len(pairs) > len(best):
-            best = np.array(pairs, dtype=np.int64)
-    return best
+    free = set(order)
+    pairs = []
+
+    def take(i: int, j: int) -> None:
+        if i in free and j in free and i != j and forward[i] != forward[j]:
+            pairs.append((group_faces[i], group_faces[j]))
+            free.difference_update((i, j))
+
+    for step in range(1, k):  # one sheet's faces, nearest in angle first
+        for n, i in enumerate(order):
+            j = order[(n + step) % k]
+            if sheet[group_faces[i]] == sheet[group_faces[j]]:
+                take(i, j)
+    for n, i in enumerate(order):  # then angular neighbours
+        take(i, order[(n + 1) % k])
+    return np.array(pairs, dtype=np.int64).reshape(-1, 2)
 
 
 def cap_holes(vertices: np.ndarray, faces: np.ndarray, boundary_sides: np.ndarray):
