@@ -63,3 +63,21 @@ def test_the_bunny_with_holes_opens_and_shows_its_caps_on_demand(qtbot, window):
     assert not model_view.full.caps.actor.GetVisibility()
     # the volume shown is the capped solid's: the one the solver keeps
     assert model_view.volume == pytest.approx(win.state.surface.rest_volume, rel=1e-3)
+
+
+def test_the_cup_example_opens_solves_and_shows_its_cap(qtbot, window):
+    from isochor import assets
+
+    win = window
+    assert win.files.open_example(assets.example_files()["cup-squeeze"])
+    wait_idle(qtbot, win)
+    assert win.state.converged and win.state.moved.any()
+    full = win.state.surface.full
+    assert full.cap_vertices == 1
+    model_view = win.viewport.scene.model
+    win.action_set.views["top"].trigger()
+    hidden = _shot(win, "cup_cap_hidden")
+    win.action_set.caps.trigger()
+    shown = _shot(win, "cup_cap_shown")
+    assert _blue(shown) > _blue(hidden) + 500  # the rim's cap covers the opening
+    assert model_view.volume == pytest.approx(win.state.surface.rest_volume, rel=1e-3)
