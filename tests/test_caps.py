@@ -380,3 +380,20 @@ def test_obj_objects_that_touch_are_kept_apart(tmp_path):
     assert loaded.bodies == 2 and loaded.volume == pytest.approx(2.0, rel=1e-12)
     assert any("Kept 2 separate objects" in w for w in loaded.warnings), loaded.warnings
     assert not any("non-manifold" in w for w in loaded.warnings)
+
+
+def test_the_benchmark_rows_of_capping(tmp_path):
+    """The Open models section on the shipped cup alone (no shared models here): the open
+    file's levels are the closed solid's, and each row says MET or MISSED with numbers."""
+    from benchmarks import caps
+
+    rows, notes = caps.run_caps(tmp_path, repeats=1)
+    assert [r.holes for r in rows] == [1] and len(notes) == 1 and "not found" in notes[0]
+    row = rows[0]
+    assert row.same and row.cap_faces == 64
+    for timing in (row.load_open, row.load_closed, row.first_open, row.first_closed):
+        assert timing.median > 0
+    assert row.first_verdict().startswith(("MET", "MISSED")) and "%" in row.first_verdict()
+    assert row.frame_verdict().startswith("MET: nothing")
+    lines = caps.section(rows, notes, "python -m benchmarks --only caps", 1)
+    assert lines[0] == caps.HEADING and any(line.startswith("| cup.obj") for line in lines)
