@@ -97,6 +97,23 @@ def proxy_level(levels, limit: int = PROXY_TRIANGLES) -> int | None:
     return fits[-1] if fits else None
 
 
+def capped_last(level, full):
+    """A coarse ``level`` of an open model with the triangles that simplify its caps put
+    last and counted as caps (so they are drawn only with the caps): those whose centre is
+    nearest a cap triangle of the ``full`` mesh. ``level`` itself for a closed model."""
+    if not full.cap_faces:
+        return level
+    from scipy.spatial import cKDTree
+
+    def centres(mesh):
+        return np.asarray(mesh.vertices)[np.asarray(mesh.faces)].mean(axis=1)
+
+    _, nearest = cKDTree(centres(full)).query(centres(level))
+    cap = nearest >= full.own_faces
+    faces = np.asarray(level.faces)
+    return type(level)(level.vertices, np.vstack([faces[~cap], faces[cap]]), 0, int(cap.sum()))
+
+
 class Shading:
     """Vertex normals and the enclosed volume of a deforming mesh with a fixed face list.
 
@@ -278,7 +295,7 @@ class ModelView:
         self.proxy_k = proxy_level(surface.levels)
         self.proxy = None
         if self.proxy_k is not None:
-            mesh = surface.levels[self.proxy_k]
+            mesh = capped_last(surface.levels[self.proxy_k], surface.full)
             points = surface.deform(self.nodes, level=self.proxy_k)
             self.proxy = MeshView(self.plotter, mesh, points, center, "proxy", self.smooth)
             rest = self.proxy.shading(mesh.vertices)[1]

@@ -81,3 +81,22 @@ def test_the_cup_example_opens_solves_and_shows_its_cap(qtbot, window):
     shown = _shot(win, "cup_cap_shown")
     assert _blue(shown) > _blue(hidden) + 500  # the rim's cap covers the opening
     assert model_view.volume == pytest.approx(win.state.surface.rest_volume, rel=1e-3)
+
+
+def test_the_bunnys_proxy_hides_its_caps_too():
+    """While a big open model moves, the window draws a coarser level, simplified from the
+    capped solid: the triangles there that simplify the caps are not drawn with the model."""
+    from isochor.app.view.modelview import capped_last
+    from isochor.core.io.meshio import load_mesh
+    from isochor.core.solve.pyramid import build_pyramid
+
+    loaded = load_mesh(model("stanford_bunny.obj"))
+    levels = build_pyramid(loaded.mesh, bodies=loaded.bodies)
+    coarse = capped_last(levels[-2], levels[-1])
+    assert 0 < coarse.cap_faces < 0.05 * coarse.n_faces  # the caps are 2.2% of the area
+    assert coarse.n_faces == levels[-2].n_faces
+    # the triangles set apart cover about what the full mesh's caps cover
+    from isochor.core.io.caps import areas, summary
+
+    apart = areas(coarse.vertices, coarse.faces)[coarse.own_faces :].sum()
+    assert 0.5 < apart / summary(loaded.mesh).cap_area < 1.5
