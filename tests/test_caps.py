@@ -397,3 +397,24 @@ def test_the_benchmark_rows_of_capping(tmp_path):
     assert row.frame_verdict().startswith("MET: nothing")
     lines = caps.section(rows, notes, "python -m benchmarks --only caps", 1)
     assert lines[0] == caps.HEADING and any(line.startswith("| cup.obj") for line in lines)
+
+
+def test_a_sequence_as_one_glb_holds_the_models_own_faces(tmp_path, capsys):
+    bowl = _sphere(1.0, level=2)
+    faces = bowl.faces[bowl.triangles_center[:, 2] < 0.3]
+    _obj(tmp_path / "bowl.obj", {"bowl": (bowl.vertices, faces)})
+    scene = {
+        "version": 3,
+        "model": {"path": "bowl.obj"},
+        "lattice": {"nodes": [3, 3, 3]},
+        "poses": [
+            {"frame": 0},
+            {"frame": 4, "moves": [{"node": [2, 1, 2], "by": [0.3, 0, 0]}]},
+        ],
+        "timeline": {"start": 0, "end": 4},
+    }
+    (tmp_path / "s.json").write_text(json.dumps(scene))
+    out = tmp_path / "anim.glb"
+    assert main(["solve", str(tmp_path / "s.json"), "--sequence", str(out), "--quiet"]) == 0
+    glb = trimesh.load(str(out), process=False, force="mesh")
+    assert len(glb.faces) == len(faces)  # no cap triangles in the file
