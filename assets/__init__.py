@@ -3,6 +3,8 @@
 - ``torus.obj``: the built-in torus (major radius 1, minor radius 0.4, axis z) at its level
   with 4096 triangles, outward wound;
 - ``club.obj``: the paper's rounded club at its level with 5120 triangles, outward wound;
+- ``cup.obj``: the built-in open cup at its level with 4032 triangles: one sheet open at
+  its rim (Isochor caps the rim virtually, and keeps the capacity under it);
 - ``examples/<name>.json``: one scenario file per built-in example of
   :data:`isochor.core.scenario.examples.EXAMPLES` (they name the built-in models,
   ``{"builtin": ...}``);
@@ -30,10 +32,11 @@ EXAMPLE_NAMES: tuple[str, ...] = (
     "torus-stretch",
     "club-compression",
     "club-bend",
+    "cup-squeeze",
 )
 
 #: Sample model name -> file name in :data:`ASSETS_DIR`.
-MODEL_FILES: dict[str, str] = {"torus": "torus.obj", "club": "club.obj"}
+MODEL_FILES: dict[str, str] = {"torus": "torus.obj", "club": "club.obj", "cup": "cup.obj"}
 
 #: The sub-folder of the example scenarios, and the icon's file name.
 EXAMPLES_SUBDIR = "examples"

@@ -25,7 +25,7 @@ from isochor.assets import EXAMPLE_NAMES, EXAMPLES_SUBDIR, ICON_FILE, MODEL_FILE
 from isochor.core.io.atomic import atomic_write_bytes, atomic_write_text
 from isochor.core.mesh import TriMesh
 from isochor.core.scenario.examples import EXAMPLES, example_scenario
-from isochor.core.scenario.shapes import club_levels, torus_levels
+from isochor.core.scenario.shapes import club_levels, cup_levels, torus_levels
 
 #: This script's folder, the default output folder.
 HERE = Path(__file__).resolve().parent
@@ -33,6 +33,8 @@ HERE = Path(__file__).resolve().parent
 #: Triangle counts of the shipped models (torus levels: 16 * 4**k, club levels: 20 * 4**k).
 TORUS_TRIANGLES = 4096
 CLUB_TRIANGLES = 5120
+#: the open cup's own triangles (its levels have 56, 240, 992, 4032, ...)
+CUP_TRIANGLES = 4032
 
 #: Icon size in pixels, and how much finer it is drawn before it is scaled down (smooth edges).
 ICON_SIZE = 256
@@ -62,6 +64,13 @@ def torus_mesh() -> TriMesh:
 def club_mesh() -> TriMesh:
     """The paper's rounded club at its level with :data:`CLUB_TRIANGLES` triangles."""
     return _level(club_levels(5), CLUB_TRIANGLES, "club")
+
+
+def cup_mesh() -> TriMesh:
+    """The built-in open cup at its level with :data:`CUP_TRIANGLES` triangles of its own,
+    without the virtual cap over its rim (a file holds the model's own faces only)."""
+    own = [m.own for m in cup_levels(5)]
+    return _level(own, CUP_TRIANGLES, "cup")
 
 
 def obj_text(mesh: TriMesh, comment: str) -> str:
@@ -133,6 +142,7 @@ def write_assets(out_dir: str | Path = HERE) -> list[Path]:
     models = {
         "torus": (torus_mesh(), f"built-in torus, {TORUS_TRIANGLES} triangles"),
         "club": (club_mesh(), f"the paper's rounded club, {CLUB_TRIANGLES} triangles"),
+        "cup": (cup_mesh(), f"built-in open cup, {CUP_TRIANGLES} triangles, open at its rim"),
     }
     for name, (mesh, what) in models.items():
         path = out / MODEL_FILES[name]

@@ -15,6 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.caps import HEADING as CAPS_HEADING
+from benchmarks.caps import run_caps
+from benchmarks.caps import section as caps_section
 from benchmarks.cases import EXAMPLES, FIGURES, Case, cow_case, example_case
 from benchmarks.constraint_cases import run_constraints
 from benchmarks.constraints_report import section, write_section
@@ -86,7 +89,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="do not draw Figures 5-8")
     p.add_argument(
         "--only",
-        choices=("constraints", "sequences", "display"),
+        choices=("constraints", "sequences", "display", "caps"),
         default=None,
         help="run one section only; the report keeps its other sections and gets this one replaced",
     )
@@ -207,6 +210,8 @@ def main(
         return run_sequences_section(models, repeats, command, out)
     if args.only == "display":
         return run_display_section(models, repeats, command, out)
+    if args.only == "caps":
+        return run_caps_section(models, repeats, command, out)
     res = Results(env, quick, repeats, [], command=command)
 
     print("Table 1")
@@ -292,6 +297,7 @@ def main(
     if not quick:  # the sections --only measures, into the same report
         run_sequences_section(models, repeats, command, out)
         run_display_section(models, repeats, command, out)
+        run_caps_section(models, repeats, command, out)
     return 0
 
 
@@ -312,5 +318,15 @@ def run_display_section(models: Path, repeats: int, command: str, out: Path | No
         lambda: run_display(models, repeats),
         lambda rows, notes: display_section(rows, notes, command, repeats),
         DISPLAY_HEADING,
+        out,
+    )
+
+
+def run_caps_section(models: Path, repeats: int, command: str, out: Path | None) -> int:
+    return only_section(
+        "Open models: what capping costs (medians)",
+        lambda: run_caps(models, repeats),
+        lambda rows, notes: caps_section(rows, notes, command, repeats),
+        CAPS_HEADING,
         out,
     )

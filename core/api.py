@@ -307,9 +307,8 @@ class Session:
     def deformed_vertices(self) -> np.ndarray:
         """The model's vertices (the caller's own, for a mesh in memory; the welded ones
         for a file) moved by the current nodes."""
-        points = (
-            self._mesh.vertices if self._mesh is not None else self.problem.surface.full.vertices
-        )
+        full = self.problem.surface.full  # (its own vertices: never the caps over its holes)
+        points = self._mesh.vertices if self._mesh is not None else full.own.vertices
         return self.lattice.deform(points, self.nodes)
 
     @property
@@ -318,7 +317,7 @@ class Session:
         :class:`~isochor.core.mesh.TriMesh` for a file."""
         if self._mesh is not None:
             return self._mesh.like(self.deformed_vertices())
-        return TriMesh(self.deformed_vertices(), self.problem.surface.full.faces)
+        return TriMesh(self.deformed_vertices(), self.problem.surface.full.own.faces)
 
     def export_bytes(
         self, path: str | Path, *, morph_target: bool = False, nodes: np.ndarray | None = None

@@ -79,10 +79,10 @@ def arrange(
         return Arrangement(inside, (), False)
 
     probe = np.stack([b[0].mean(axis=0) for b in body])  # one triangle centre per body
-    for a, b in pairs:
-        inside[a, b] = _inside(probe[a : a + 1], body[b])[0]
-        inside[b, a] = _inside(probe[b : b + 1], body[a])[0]
     rng = np.random.default_rng(0)
+    for a, b in pairs:
+        inside[a, b] = _inside(probe[a : a + 1], body[b])[0] and _within(body[a], body[b], rng)
+        inside[b, a] = _inside(probe[b : b + 1], body[a])[0] and _within(body[b], body[a], rng)
     overlaps = []
     for a, b in pairs:
         if inside[a, b] or inside[b, a]:
@@ -96,15 +96,31 @@ def _overlap(vertices, faces, labels, a, b, body, lo, hi, rng) -> bool:
     """Some point is strictly inside both: a vertex of one inside the other, or a point of
     the two boxes' common part inside both."""
     box_lo, box_hi = np.maximum(lo[a], lo[b]), np.minimum(hi[a], hi[b])
+    if np.any(box_hi - box_lo <= 1e-12 * np.max(hi - lo)):
+        return False  # boxes that only touch (a face, an edge, a corner): no common volume
     for mine, other in ((a, b), (b, a)):
         points = vertices[np.unique(faces[labels == mine])]
         near = points[np.all((points >= lo[other]) & (points <= hi[other]), axis=1)]
+        # a corner the two share (bodies that touch) is on the other's surface, where the
+        # winding number is not defined: not a sign of overlap
+        corners = {tuple(p) for p in vertices[np.unique(faces[labels == other])].tolist()}
+        near = near[[tuple(p) not in corners for p in near.tolist()]]
         if len(near) > SAMPLES:
             near = near[rng.choice(len(near), SAMPLES, replace=False)]
         if len(near) and np.any(_inside(near, body[other])):
             return True
     common = box_lo + rng.random((SAMPLES, 3)) * (box_hi - box_lo)
     return bool(np.any(_inside(common, body[a]) & _inside(common, body[b])))
+
+
+def _within(mine: np.ndarray, other: np.ndarray, rng) -> bool:
+    """No sampled corner of ``mine`` lies clearly outside ``other``: a body whose one probe
+    is inside another but which pokes out of it (a shifted copy) overlaps it, it is not a
+    cavity in it."""
+    corners = mine.reshape(-1, 3)
+    if len(corners) > SAMPLES:
+        corners = corners[rng.choice(len(corners), SAMPLES, replace=False)]
+    return bool(np.all(np.abs(winding_numbers(corners, other)) > 1 - INSIDE))
 
 
 def _inside(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:

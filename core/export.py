@@ -32,7 +32,6 @@ from .io.atomic import check_outputs, write_outputs
 from .io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
 from .io.meshio import mesh_bytes
 from .io.plyheader import PlyHeader
-from .mesh import TriMesh
 from .scenario.problem import Problem
 
 
@@ -80,7 +79,8 @@ def export_bytes(
             f"{path}: a morph target needs a glTF model exported as glTF (.glb or .gltf)"
         )
     if not same:
-        mesh = TriMesh(problem.surface.deform(nodes), problem.surface.full.faces)
+        full = problem.surface.full  # (the model's own surface: never its caps)
+        mesh = full.moved(problem.surface.deform(nodes)).own
         notes = _lost(problem, path) if source is not None else []
         return Exported(mesh_bytes(mesh, suffix), notes)
     if not source.unchanged():
@@ -138,8 +138,9 @@ def export_sequence(
 
     path, source, surface = Path(path), problem.model.source, problem.surface
     if source is None:
-        meshes = [surface.deform(nodes) for nodes in frames]
-        return Exported(animated_glb(surface.full.vertices, surface.full.faces, meshes, rate))
+        own = surface.full.own  # (never the caps over its holes)
+        meshes = [surface.deform(nodes)[: own.n_vertices] for nodes in frames]
+        return Exported(animated_glb(own.vertices, own.faces, meshes, rate))
     if not source.unchanged():
         raise IsochorError(
             f"{source.path}: the model file changed on disk since it was opened; open it "
@@ -251,9 +252,9 @@ def _lost(problem: Problem, out: Path) -> list[str]:
         try:
             raw = len(positions(data, suffix, name=source.name))
         except IsochorError:
-            raw = problem.surface.full.n_vertices
-        if raw != problem.surface.full.n_vertices:
-            held.append(f"vertex numbering ({raw} vertices, {problem.surface.full.n_vertices} "
+            raw = problem.surface.full.own_vertices
+        if raw != problem.surface.full.own_vertices:
+            held.append(f"vertex numbering ({raw} vertices, {problem.surface.full.own_vertices} "
                         "once the ones that share a place are welded)")  # fmt: skip
     if not held:
         return []

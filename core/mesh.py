@@ -16,10 +16,15 @@ class TriMesh:
     ----------
     vertices : (m, 3) float64
     faces : (f, 3) int64, counter-clockwise seen from outside for a positive volume.
+    cap_vertices, cap_faces : how many of the last vertices and faces are virtual caps
+        over the holes of an open model (:mod:`isochor.core.io.caps`): part of the solid
+        the solver keeps the volume of, never of the model written to a file
     """
 
     vertices: np.ndarray
     faces: np.ndarray
+    cap_vertices: int = 0
+    cap_faces: int = 0
 
     def __post_init__(self) -> None:
         v = np.ascontiguousarray(self.vertices, dtype=np.float64)
@@ -32,6 +37,27 @@ class TriMesh:
         f.flags.writeable = False
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "faces", f)
+
+    @property
+    def own_vertices(self) -> int:
+        """How many vertices are the model's own (the first ones; caps come after)."""
+        return self.n_vertices - self.cap_vertices
+
+    @property
+    def own_faces(self) -> int:
+        """How many faces are the model's own (the first ones; caps come after)."""
+        return self.n_faces - self.cap_faces
+
+    @property
+    def own(self) -> TriMesh:
+        """The model's own surface, without the caps (itself when it has none)."""
+        if not self.cap_faces and not self.cap_vertices:
+            return self
+        return TriMesh(self.vertices[: self.own_vertices], self.faces[: self.own_faces])
+
+    def moved(self, vertices: np.ndarray) -> TriMesh:
+        """The same mesh (faces and caps) with its vertices at ``vertices``."""
+        return TriMesh(vertices, self.faces, self.cap_vertices, self.cap_faces)
 
     @property
     def n_faces(self) -> int:

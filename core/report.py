@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from .io.caps import summary
 from .io.repair import count_bodies
 from .scenario.problem import Problem
 from .solve.records import SolveResult
@@ -32,8 +33,9 @@ def make_report(
         "model": dict(sc.model),
         "model_path": str(sc.model_path()) if "path" in sc.model else None,
         "lattice": list(problem.surface.lattice.shape),
-        "triangles": problem.surface.full.n_faces,
+        "triangles": problem.surface.full.own_faces,
         "bodies": count_bodies(problem.surface.full),
+        "caps": _caps(problem),
         "volume_original": result.volume_original,
         "volume_target": result.volume_target,
         "volume_final": result.volume_final,
@@ -137,4 +139,14 @@ def _folds(folds: Any) -> dict[str, float] | None:
         "vertex_fraction": folds.vertex_fraction,
         "interior_fraction": folds.interior_fraction,
         "min_det_j": low,
+    }
+
+
+def _caps(problem: Problem) -> dict[str, Any]:
+    """The caps over the model's holes (the volumes are those of the capped solid)."""
+    caps = summary(problem.surface.full)
+    return {
+        "holes": caps.holes,
+        "boundary_edges": caps.boundary_edges,
+        "area_ratio": caps.ratio,  # the caps' area over the model's own surface area
     }

@@ -27,13 +27,17 @@ CLOSED = {
     "torus_knot_quads.obj": (2880, 1),
 }
 
-#: open surfaces: name -> (boundary edges, non-manifold edges) after welding (SOURCES.md)
+#: open surfaces that open with their holes capped or their objects kept apart:
+#: name -> (boundary edges, non-manifold edges) when welded as one (SOURCES.md)
 OPEN = {
     "teapot.obj": (160, 0),
     "stanford_bunny.obj": (223, 0),
-    "soup.stl": (300, 0),
+    "stanford_bunny_flipped_vtk.ply": (223, 0),
     "two_objects.obj": (0, 3),
 }
+
+#: surfaces with no solid to keep, refused: name -> what the message says
+REFUSED = {"soup.stl": "no solid to keep"}
 
 
 def model(name: str) -> Path:

@@ -75,7 +75,7 @@ def test_deform_a_pyvista_mesh_gives_a_pyvista_mesh():
         ("no-such-file.obj", "no-such-file.obj.*no such file"),  # a string is a path
         ((np.zeros((4, 2)), np.array([[0, 1, 2]])), r"vertices must be an \(n, 3\) array"),
         ((np.zeros((3, 3)), np.array([[0, 1, 5]])), "a vertex that does not exist"),
-        ((icosphere(1).vertices, icosphere(1).faces[1:]), "not closed"),
+        ((np.eye(3), np.array([[0, 1, 2]])), "flat open sheet.*no solid to keep"),
     ],
 )
 def test_a_bad_mesh_is_one_sentence(mesh, words):

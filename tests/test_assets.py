@@ -16,12 +16,13 @@ from isochor.assets import make_assets
 from isochor.core.io.meshio import load_mesh
 from isochor.core.scenario.document import Scenario
 from isochor.core.scenario.examples import EXAMPLES, example_scenario
-from isochor.core.scenario.shapes import club_levels, torus_levels, torus_volume
+from isochor.core.scenario.shapes import club_levels, cup_levels, torus_levels, torus_volume
 from isochor.core.volume import signed_volume
 
 SHIPPED = {
     "torus.obj",
     "club.obj",
+    "cup.obj",
     "icon.png",
     *(f"examples/{name}.json" for name in EXAMPLES),
 }
@@ -142,6 +143,29 @@ def test_shipped_model_is_the_builtin_level(name, levels, n_triangles):
     assert loaded.volume == pytest.approx(expected, rel=1e-6)
 
 
+def test_shipped_cup_is_open_at_its_rim_and_keeps_its_capacity():
+    """The container: one sheet, the builtin level's own faces, one open rim; loaded, the
+    rim is capped and the volume is the capacity, measured here with a cap of our own."""
+    path = assets.model_files()["cup"]
+    v, f = _raw_obj(path)
+    builtin = next(m for m in cup_levels(5) if m.own_faces == len(f))
+    np.testing.assert_allclose(v, builtin.own.vertices, rtol=0, atol=1e-8)
+    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    reverse = {tuple(e) for e in directed[:, ::-1].tolist()}
+    rim = np.array([e for e in directed.tolist() if tuple(e) not in reverse])
+    assert len(np.unique(rim[:, 0])) == len(rim) == 64  # one loop: the rim's 64 segments
+    assert np.ptp(v[rim[:, 0], 2]) < 1e-12  # a flat rim: our cap is a flat polygon
+    apex = len(v)
+    capped = np.vstack([f, np.c_[rim[:, 1], rim[:, 0], np.full(len(rim), apex)]])
+    capacity = signed_volume(np.vstack([v, v[rim[:, 0]].mean(axis=0)]), capped)
+    assert capacity > 0
+    loaded = load_mesh(path)
+    assert loaded.mesh.cap_vertices == 1 and loaded.mesh.cap_faces == 64
+    assert loaded.mesh.own_faces == len(f) and loaded.bodies == 1
+    assert loaded.volume == pytest.approx(capacity, rel=1e-12)
+    assert any("Capped 1 hole" in w for w in loaded.warnings)
+
+
 def test_torus_volume_is_close_to_the_closed_form():
     loaded = load_mesh(assets.model_files()["torus"])
     assert torus_volume() == pytest.approx(2 * pi**2 * 1.0 * 0.4**2)
@@ -168,7 +192,7 @@ def test_api_returns_existing_files():
     assert Path(assets.__file__).resolve().parent == assets.ASSETS_DIR
     files = [*assets.example_files().values(), *assets.model_files().values(), assets.icon_path()]
     assert all(isinstance(p, Path) and p.is_file() for p in files)
-    assert list(assets.model_files()) == ["torus", "club"]
+    assert list(assets.model_files()) == ["torus", "club", "cup"]
     assert assets.icon_path().name == "icon.png"
 
 

@@ -20,7 +20,7 @@ from isochor.core.io.meshio import load_mesh, mesh_bytes
 from isochor.core.scenario.examples import EXAMPLES
 from isochor.core.scenario.paper_models import bend_scenario, cow_bend_scenario, squash_scenario
 from tests.fresh import run_fresh
-from tests.models import CLOSED, OPEN, available, icosphere, model, trimesh_volume
+from tests.models import CLOSED, REFUSED, available, icosphere, model, trimesh_volume
 
 ROOT = Path(__file__).resolve().parents[1]
 REPORT_KEYS = {
@@ -215,7 +215,7 @@ def test_refused_model_in_a_subprocess_is_one_line(tmp_path):
 # -- refused files ------------------------------------------------------------------------
 def _refused(tmp_path) -> dict[str, Path]:
     files = {}
-    for name in OPEN:
+    for name in REFUSED:
         if (path := available(name)) is not None:
             files[name] = path
     good = mesh_bytes(icosphere(2), ".ply")
@@ -249,8 +249,8 @@ def test_every_refused_file_gives_one_line_and_status_1(tmp_path, capsys):
         assert status == 1, name
         lines = captured.err.splitlines()
         assert len(lines) == 1 and lines[0].startswith("isochor: ") and name in lines[0], lines
-        if name in OPEN:
-            assert "not closed" in lines[0]
+        if name in REFUSED:
+            assert REFUSED[name] in lines[0]
         assert not out.exists() and not (tmp_path / "never.json").exists()
         assert captured.out == ""
 

@@ -12,11 +12,11 @@ from scipy.spatial import ConvexHull
 
 from isochor.core.errors import IsochorError
 from isochor.core.io.meshio import load_mesh, mesh_bytes, save_mesh
-from isochor.core.io.repair import EdgeReport, clean_closed_surface, count_bodies
+from isochor.core.io.repair import EdgeReport, balanced, clean_closed_surface, count_bodies
 from isochor.core.mesh import TriMesh
 from isochor.core.scenario.problem import load_model
 from isochor.core.volume import signed_volume
-from tests.models import CLOSED, OPEN, box, icosphere, joined, model, trimesh_volume
+from tests.models import CLOSED, OPEN, REFUSED, box, icosphere, joined, model, trimesh_volume
 
 
 def write_obj(path, mesh: TriMesh) -> None:
@@ -91,17 +91,29 @@ def test_multibody_stl_with_inconsistent_winding_keeps_both_bodies():
     assert loaded.volume == pytest.approx(hulls, rel=3e-4)
 
 
-@pytest.mark.parametrize("name", sorted(OPEN))
-def test_open_surfaces_are_refused_with_edge_counts(name):
-    boundary, non_manifold = OPEN[name]
+@pytest.mark.parametrize("name", sorted(REFUSED))
+def test_surfaces_with_no_solid_are_refused_saying_why(name):
     with pytest.raises(IsochorError) as err:
         load_mesh(model(name))
     msg = str(err.value)
-    assert msg.startswith(f"{name}: the surface is not closed")
-    assert f"{boundary} boundary edge" in msg
-    if non_manifold:
-        assert f"{non_manifold} non-manifold edge" in msg
+    assert msg.startswith(f"{name}: ") and REFUSED[name] in msg
     assert "\n" not in msg
+
+
+@pytest.mark.parametrize("name", sorted(OPEN))
+def test_open_surfaces_open_capped_or_kept_apart(name):
+    boundary, non_manifold = OPEN[name]
+    loaded = load_mesh(model(name))
+    mesh = loaded.mesh
+    assert mesh.cap_faces == boundary  # one cap triangle per boundary edge
+    words = " ".join(loaded.warnings)
+    if boundary:
+        assert f"Capped {mesh.cap_vertices} hole(s)" in words
+    else:
+        assert "apart" in words
+    # closed, consistently wound: every directed edge run once each way
+    assert balanced(mesh.faces, mesh.n_vertices)
+    assert loaded.volume > 0
 
 
 # -- synthetic inputs ---------------------------------------------------------------------

@@ -310,7 +310,7 @@ def _solve(args: argparse.Namespace) -> int:
     write_outputs(files, on_commit=interrupts.commit)
     for note in exported.notes if exported is not None else ():
         print(f"isochor: note: {note}", file=sys.stderr)
-    _summary(result, args, console)
+    _summary(result, args, console, caps_words(session.problem.surface.full))
     if result.converged and not result.handles_met:  # the best fit, said as a warning
         print(f"isochor: warning: {result.message}", file=sys.stderr)
     if not result.converged:
@@ -368,11 +368,21 @@ def run_solve(session: Session, out: TextIO | None = None) -> SolveResult:
     return run_to_end(run, row)
 
 
-def _summary(result: SolveResult, args: argparse.Namespace, out: PipeSafe) -> None:
+def caps_words(mesh) -> str:
+    """'' for a closed model; for an open one, how many holes were capped and how large."""
+    from ...core.io.caps import summary  # (numpy: after the solve, imported already)
+
+    caps = summary(mesh)
+    if not caps.holes:
+        return ""
+    return f" (capped: {caps.holes} hole(s), {100 * caps.ratio:.2g}% of the surface's area)"
+
+
+def _summary(result: SolveResult, args: argparse.Namespace, out: PipeSafe, caps: str) -> None:
     if args.quiet:
         return
     print(
-        f"volume {result.volume_original:.6g} -> {result.volume_final:.6g} "
+        f"volume{caps} {result.volume_original:.6g} -> {result.volume_final:.6g} "
         f"(target {result.volume_target:.6g}, error {result.rel_volume_error:+.2e}); "
         f"{result.free_nodes} free nodes; {result.elapsed:.2f} s",
         file=out,

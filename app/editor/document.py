@@ -313,9 +313,10 @@ class Document:
         self.title = path.name
 
     def deformed_mesh(self, nodes: np.ndarray | None = None) -> TriMesh:
-        """The full-resolution mesh deformed by ``nodes`` (default: the nodes on screen)."""
+        """The full-resolution mesh deformed by ``nodes`` (default: the nodes on screen),
+        with the caps over its holes, if any (``.own`` without them)."""
         nodes = self.base_nodes() if nodes is None else nodes
-        return TriMesh(self.surface.deform(nodes), self.surface.full.faces)
+        return self.surface.full.moved(self.surface.deform(nodes))
 
     def export(self, path: str | Path, nodes: np.ndarray | None = None) -> list[str]:
         """Write the deformed model through the one export path (:mod:`isochor.core.export`):

@@ -110,4 +110,9 @@ def _child_env() -> dict[str, str]:
 def _frozen(model: Model) -> Model:
     """The model as :func:`load_model` makes it: read-only mesh arrays (unpickled ones
     are writeable)."""
-    return replace(model, levels=tuple(TriMesh(m.vertices, m.faces) for m in model.levels))
+    return replace(
+        model,
+        levels=tuple(
+            TriMesh(m.vertices, m.faces, m.cap_vertices, m.cap_faces) for m in model.levels
+        ),
+    )

@@ -97,6 +97,23 @@ def proxy_level(levels, limit: int = PROXY_TRIANGLES) -> int | None:
     return fits[-1] if fits else None
 
 
+def capped_last(level, full):
+    """A coarse ``level`` of an open model with the triangles that simplify its caps put
+    last and counted as caps (so they are drawn only with the caps): those whose centre is
+    nearest a cap triangle of the ``full`` mesh. ``level`` itself for a closed model."""
+    if not full.cap_faces:
+        return level
+    from scipy.spatial import cKDTree
+
+    def centres(mesh):
+        return np.asarray(mesh.vertices)[np.asarray(mesh.faces)].mean(axis=1)
+
+    _, nearest = cKDTree(centres(full)).query(centres(level))
+    cap = nearest >= full.own_faces
+    faces = np.asarray(level.faces)
+    return type(level)(level.vertices, np.vstack([faces[~cap], faces[cap]]), 0, int(cap.sum()))
+
+
 class Shading:
     """Vertex normals and the enclosed volume of a deforming mesh with a fixed face list.
 
@@ -155,10 +172,14 @@ class MeshView:
 
     def __init__(self, plotter, mesh, points: np.ndarray, center, name: str, smooth: bool):
         faces = np.asarray(mesh.faces)
-        self.faces = faces
-        self.n_faces = len(faces)
-        self.shading = Shading(faces, len(points), center)
-        self.poly = pv.PolyData(np.array(points), cells(faces[draw_order(points, faces)]))
+        own = faces[: len(faces) - getattr(mesh, "cap_faces", 0)]  # never the caps
+        self.faces = own  # (what is drawn and picked: the model's own triangles)
+        self.n_faces = len(own)
+        self.shading = Shading(faces, len(points), center)  # (the capped solid's volume)
+        self.poly = pv.PolyData(np.array(points), cells(own[draw_order(points, own)]))
+        self.caps = (
+            Caps(plotter, points, faces[len(own) :], name) if len(own) < len(faces) else None
+        )
         self.poly.point_data["colors"] = np.tile(rgb(style.MODEL), (len(points), 1))
         normals, self.volume = self.shading(points)
         self.actor = plotter.add_mesh(
@@ -179,6 +200,8 @@ class MeshView:
             self.poly.point_data["Normals"][:] = normals
         self.volume = volume
         self.poly.Modified()
+        if self.caps is not None:
+            self.caps.place(points)
 
     def draw_at(self, points: np.ndarray, smooth: bool) -> None:
         normals, volume = self.shading(points)
@@ -203,6 +226,37 @@ class MeshView:
         poly.Modified()
 
 
+class Caps:
+    """The caps over an open model's holes (:mod:`isochor.core.io.caps`), drawn on demand:
+    translucent, so that the artist sees which volume is kept. Hidden by default; placed
+    with the full mesh only while shown."""
+
+    def __init__(self, plotter, points: np.ndarray, faces: np.ndarray, name: str) -> None:
+        self.poly = pv.PolyData(np.array(points), cells(faces))
+        self.actor = plotter.add_mesh(
+            self.poly,
+            color=style.CAPS,
+            opacity=0.55,
+            show_scalar_bar=False,
+            render=False,
+            pickable=False,
+            name=f"{name} caps",
+        )
+        self.actor.SetVisibility(False)
+        self.wanted = False
+
+    def place(self, points: np.ndarray) -> None:
+        if self.actor.GetVisibility():
+            self.poly.points[:] = points
+            self.poly.Modified()
+
+    def show(self, on: bool, points: np.ndarray) -> None:
+        if on and not self.actor.GetVisibility():
+            self.poly.points[:] = points
+            self.poly.Modified()
+        self.actor.SetVisibility(bool(on))
+
+
 class ModelView:
     """The model's actors ("model", the full mesh, and "proxy" when the model is big) and
     which of them is drawn."""
@@ -217,6 +271,7 @@ class ModelView:
         self.volume = 0.0  #: signed volume of the model at the nodes drawn
         self.estimated = False  #: :attr:`volume` is the proxy's estimate
         self.folded = 0  #: how many vertices are marked folded
+        self.caps_wanted = False  #: draw the caps over an open model's holes
         self._surface = None
         self._full_nodes: np.ndarray | None = None  # the nodes the full mesh is placed at
         self._upgrade: Iterator[None] | None = None
@@ -236,10 +291,11 @@ class ModelView:
         self._full_nodes = self.nodes.copy()
         self.folded = 0
         self.volume, self.estimated = self.full.volume, False
+        self.show_caps(self.caps_wanted)
         self.proxy_k = proxy_level(surface.levels)
         self.proxy = None
         if self.proxy_k is not None:
-            mesh = surface.levels[self.proxy_k]
+            mesh = capped_last(surface.levels[self.proxy_k], surface.full)
             points = surface.deform(self.nodes, level=self.proxy_k)
             self.proxy = MeshView(self.plotter, mesh, points, center, "proxy", self.smooth)
             rest = self.proxy.shading(mesh.vertices)[1]
@@ -250,7 +306,7 @@ class ModelView:
         """The rest shape the ghost draws: the proxy's level when there is one (faint and
         translucent, it looks the same at a fraction of the cost)."""
         k = proxy_level(surface.levels)
-        return surface.full if k is None else surface.levels[k]
+        return surface.full.own if k is None else surface.levels[k]
 
     # -- frames ------------------------------------------------------------------------------
     def draw(self, nodes: np.ndarray, moving: bool) -> None:
@@ -317,6 +373,17 @@ class ModelView:
         self.full.actor.SetVisibility(full)
         if self.proxy is not None:
             self.proxy.actor.SetVisibility(not full)
+        if self.full.caps is not None:  # (on the full mesh only: the proxy has no caps apart)
+            self.full.caps.show(full and self.caps_wanted, np.asarray(self.full.poly.points))
+
+    def show_caps(self, on: bool) -> None:
+        """Draw the caps over the model's holes (when it has any) or not."""
+        self.caps_wanted = bool(on)
+        self._show(bool(self.full.actor.GetVisibility()))
+
+    @property
+    def has_caps(self) -> bool:
+        return self.full is not None and self.full.caps is not None
 
     def know_volume(self, nodes: np.ndarray, volume: float) -> None:
         """The full mesh's volume at ``nodes`` is ``volume`` (measured by a solve): say it

@@ -22,6 +22,7 @@ HANDLE = "#FF8C1A"  # a brighter orange than MOVED: a surface handle's target (a
 MODEL = "#d8d2c4"  # warm clay
 FOLDED = "#ff2d55"  # the part of the model a result turned inside out
 GHOST = "#9fb3c8"
+CAPS = "#56B4E9"  # sky blue: the caps over an open model's holes, shown on demand
 SPRING_AXIS = "#8b95a5"
 SPRING_DIAGONAL = "#4d5563"
 BACKGROUND_TOP = "#3a404a"

@@ -161,6 +161,13 @@ class ActionSet:
         self.diag = A("Show Diagonal Springs", win.display_changed, checkable=True)
         self.ghost = A("Show &Ghost of the Original", win.display_changed, checkable=True)
         self.smooth = A("&Smooth Shading", win.display_changed, checkable=True, checked=True)
+        self.caps = A(
+            "Show &Caps over Holes",
+            win.display_changed,
+            checkable=True,
+            tip="Show the caps Isochor adds over an open model's holes: the volume kept "
+            "is the volume inside them (they are never written to a file)",
+        )
         # -- Help
         self.help = A("&Controls", win.show_controls, K("F1"))
         self.about = A("&About Isochor", win.show_about)
@@ -373,7 +380,7 @@ class ActionSet:
         for a in self.views.values():
             m.addAction(a)
         m.addSeparator()
-        for a in (self.lattice, self.diag, self.ghost, self.smooth):
+        for a in (self.lattice, self.diag, self.ghost, self.smooth, self.caps):
             m.addAction(a)
         m.addSeparator()
         for dock in docks:

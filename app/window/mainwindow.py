@@ -23,6 +23,7 @@ from PySide6.QtWidgets import QDockWidget, QMainWindow, QMenu, QMessageBox, QScr
 
 from ... import assets
 from ...core.errors import IsochorError
+from ...core.io.caps import summary
 from ..editor import goalrules, latticerules, noderules
 from ..editor.document import Document, plural
 from ..session.controller import EditorSession
@@ -229,6 +230,9 @@ class MainWindow(QMainWindow):
         self.update_title()
         for w in st.problem.warnings:
             self.statusBar().showMessage(w, 10000)
+        caps = summary(st.surface.full)  # (the words that matter most for an open model)
+        if caps.holes:
+            self.statusBar().showMessage(caps.sentence(), 15000)
         self._state_changed()
 
     def _scene_changed(self) -> None:
@@ -345,6 +349,7 @@ class MainWindow(QMainWindow):
             scene.set_ghost(acts.ghost.isChecked())
             if scene.smooth != acts.smooth.isChecked():
                 scene.set_smooth(acts.smooth.isChecked())
+            scene.set_caps(acts.caps.isChecked())
             self.viewport.show_gizmo()
         self.viewport.update()
 

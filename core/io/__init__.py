@@ -5,7 +5,9 @@
   :mod:`.repair`); write a mesh anew
 - :mod:`.plyheader` the PLY header: its one parser and the one table of PLY's scalar types
   (for :mod:`.meshio` and :mod:`.roundtrip`)
-- :mod:`.repair`    weld, drop degenerate triangles, check closed, repair winding, orient
+- :mod:`.repair`    weld, drop degenerate triangles, split, repair winding, cap, orient
+- :mod:`.caps`      open surfaces closed virtually: non-manifold edges split into sheets,
+  holes capped with fans appended after the model's own vertices and faces
 - :mod:`.roundtrip` rewrite an OBJ/PLY/STL/OFF file: positions deformed, all else kept
 - :mod:`.gltf`      read glTF/GLB; rewrite it deformed, with a morph target, or animated (a
   morph target per frame, weights animated); separate images re-pointed when written elsewhere

@@ -39,14 +39,23 @@ _DAMAGED = (LookupError, TypeError, ValueError, AttributeError, ArithmeticError,
 
 
 def read_gltf(
-    data: bytes, suffix: str, *, name: str = "model", base_dir: Path | None = None
+    data: bytes,
+    suffix: str,
+    *,
+    name: str = "model",
+    base_dir: Path | None = None,
+    parts: list[int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """World-space vertices ``(m, 3) float64`` and triangles ``(f, 3) int64`` of every
-    triangle primitive (mode 4) of every mesh instance in the default scene, depth first."""
+    triangle primitive (mode 4) of every mesh instance in the default scene, depth first.
+    ``parts``, when given, gets the number of triangles of each mesh instance, in order
+    (separate objects, never welded together)."""
     points, faces, offset = [np.zeros((0, 3))], [np.zeros((0, 3), np.int64)], 0
     with _guard(name):
         gltf = _Gltf(data, suffix, name, base_dir)
         for _node, mesh, world in gltf.instances():
+            if parts is not None:
+                parts.append(sum(len(f) for f in faces))
             for prim in gltf.ref("meshes", mesh)["primitives"]:
                 if prim.get("mode", 4) != 4 or "POSITION" not in prim["attributes"]:
                     continue
@@ -56,6 +65,8 @@ def read_gltf(
                 points.append(local @ world[:3, :3].T + world[:3, 3])
                 offset += len(local)
     vertices, faces = np.concatenate(points), np.concatenate(faces)
+    if parts is not None:  # (starts so far: now the triangles of each instance)
+        parts[:] = np.diff([*parts, len(faces)]).tolist()
     if not len(faces):
         raise IsochorError(f"{name}: no triangles found (no triangle mesh in the default scene)")
     if not np.all(np.abs(vertices) <= MAX_COORDINATE):

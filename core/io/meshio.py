@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import io
 import logging
+import re
 import warnings
 from collections.abc import Iterable
 from contextlib import contextmanager
@@ -76,16 +77,17 @@ def load_mesh(path: str | Path) -> LoadedMesh:
         surface is not closed. The message starts with the file name.
     """
     path = Path(path)
-    vertices, faces = _read_raw(path)
+    vertices, faces, parts = _read_raw(path)
     try:
-        mesh, warns, bodies = clean_closed_surface(vertices, faces)
+        mesh, warns, bodies = clean_closed_surface(vertices, faces, parts)
     except IsochorError as exc:
         raise IsochorError(f"{path.name}: {exc}") from None
     return LoadedMesh(mesh, warns, bodies, path)
 
 
-def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices ``(m, 3) float64`` and triangles ``(f, 3) int64`` as the file holds them."""
+def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Vertices ``(m, 3) float64`` and triangles ``(f, 3) int64`` as the file holds them,
+    and the file's object of each triangle (None: one object, or not known)."""
     kind = READ_FORMATS.get(path.suffix.lower())
     if kind is None:
         known = listing(READ_FORMATS)
@@ -108,14 +110,16 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if kind in ("glb", "gltf"):
         from .gltf import read_gltf
 
+        counts: list[int] = []
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")
             vertices, faces = read_gltf(
-                data, path.suffix.lower(), name=path.name, base_dir=path.parent
+                data, path.suffix.lower(), name=path.name, base_dir=path.parent, parts=counts
             )
-        return _checked(path, kind, vertices, faces)
+        parts = np.repeat(np.arange(len(counts)), counts) if len(counts) > 1 else None
+        return (*_checked(path, kind, vertices, faces), parts)
     if kind == "ply" and (direct := binary_ply(data)) is not None:
-        return _checked(path, kind, *direct)
+        return (*_checked(path, kind, *direct), None)
     import trimesh  # heavy: imported on the first read
 
     try:
@@ -131,7 +135,54 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise IsochorError(
             f"{path.name}: not a readable {kind.upper()} file (damaged or truncated?): {detail}"
         ) from None
-    return _checked(path, kind, vertices, faces)
+    vertices, faces = _checked(path, kind, vertices, faces)
+    return vertices, faces, file_objects(kind, data, vertices, faces)
+
+
+_OBJ_OBJECT = re.compile(rb"^[og][ \t]", re.M)
+_STL_SOLIDS = re.compile(rb"^\s*endsolid", re.M)
+
+
+def file_objects(kind: str, data: bytes, vertices: np.ndarray, faces: np.ndarray):
+    """(f,) the file's object of each triangle as trimesh read them: an OBJ's ``o``/``g``
+    objects, an ASCII STL's ``solid`` blocks; None for one object, or when the file's
+    triangles cannot be matched one to one with what was read (nothing is assumed)."""
+    if kind == "obj" and len(_OBJ_OBJECT.findall(data)) > 1:
+        part, per_face, first = 0, [], []
+        points: list[bytes] = []
+        for line in data.splitlines():
+            head = line[:2]
+            if head in (b"v ", b"v\t"):
+                points.append(line)
+            elif head in (b"o ", b"g ", b"o\t", b"g\t"):
+                part += 1
+            elif head in (b"f ", b"f\t"):
+                corners = line.split()[1:]
+                n = max(len(corners) - 2, 0)
+                per_face += [part] * n
+                first += [(corners[0], len(points))] * n  # (a negative index counts back)
+        if len(per_face) != len(faces) or not per_face or len(set(per_face)) < 2:
+            return None
+        # the first corner of (a sample of) the triangles must be where trimesh put it
+        sample = np.unique(np.linspace(0, len(first) - 1, min(len(first), 2000)).astype(int))
+        try:
+            coords = []
+            for k in sample:
+                token, seen = first[k]
+                i = int(token.split(b"/")[0])
+                coords.append([float(x) for x in points[seen + i if i < 0 else i - 1].split()[1:4]])
+        except (ValueError, IndexError):
+            return None
+        if not np.array_equal(np.array(coords), vertices[faces[sample, 0]]):
+            return None
+        return np.asarray(per_face)
+    if kind == "stl" and len(_STL_SOLIDS.findall(data)) > 1:
+        blocks = _STL_SOLIDS.split(data)[:-1]
+        counts = [len(re.findall(rb"^\s*facet\b", b, re.M)) for b in blocks]
+        if sum(counts) != len(faces):
+            return None
+        return np.repeat(np.arange(len(counts)), counts)
+    return None
 
 
 def _checked(

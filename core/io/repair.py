@@ -1,23 +1,27 @@
-"""Surface repair: make a closed, consistently wound, outward-facing mesh of what artists have.
+"""Surface repair: make a closed, consistently wound, outward-facing solid of what artists have.
 
 :func:`clean_closed_surface` runs the steps in order:
 
 1. coincident vertices are welded by position (UV and normal seams, STL's repeated corners),
    within 1e-9 of the model size (at most 10^4 typical edges, so one stray far vertex does
-   not weld the rest together), so the weld does not depend on the model's units;
+   not weld the rest together), so the weld does not depend on the model's units. The
+   file's separate objects (OBJ ``o``/``g``, STL ``solid``, glTF meshes) that are closed on
+   their own are never welded to another object (:func:`weld_parts`);
 2. triangles with a repeated corner are dropped, and so are duplicate triangles (two
    copies of one triangle wound opposite ways cancel, like a double wall; same-way copies
    are kept once); unreferenced vertices are dropped;
-3. the surface must be closed: every edge shared by exactly two triangles. Otherwise it is
-   refused, with the count of boundary edges (holes) and non-manifold edges. A pinched
-   vertex (the paper's cow has one) is fine: only edges matter for the volume;
-4. inconsistent winding is repaired by flipping the smaller side of every body (warning);
+3. non-manifold edges (more than two triangles) are split into manifold sheets (warning;
+   :mod:`.caps`). A pinched vertex (the paper's cow has one) is fine: only edges matter;
+4. inconsistent winding is repaired by flipping the smaller side of every body (warning),
+   then every hole is capped virtually (:mod:`.caps`; the caps come after the model's own
+   vertices and faces, and a warning says how many and how large);
 5. each body is turned to face outward, or inward for a cavity inside another body, so the
    signed volume is the solid's volume (warning when anything was flipped; bodies that
    overlap are accepted with a warning that their common part counts twice; see
    :mod:`isochor.core.bodies`);
-6. a surface whose volume is lost in rounding is flat and refused; a few vertices far from
-   all the others (a damaged file) are accepted with a warning.
+6. a surface whose volume is lost in rounding is flat and refused, and so is an open surface
+   whose caps enclose nothing (a flat sheet, loose triangles: no solid to keep); a few
+   vertices far from all the others (a damaged file) are accepted with a warning.
 
 The topology helpers (:class:`EdgeReport`, :func:`body_labels`, ...) serve the level
 pyramid too. Nothing here reads or writes files.
@@ -34,6 +38,7 @@ from scipy.sparse.csgraph import connected_components
 from ..bodies import arrange, orient, tetra_volumes
 from ..errors import IsochorError
 from ..mesh import TriMesh
+from .caps import CapSummary, areas, boundary_sides, cap_holes, split_non_manifold
 
 #: vertices closer than this fraction of the model size are one vertex
 WELD_TOLERANCE = 1e-9
@@ -46,25 +51,36 @@ _MIX = np.uint64(0xBF58476D1CE4E5B9)  # an odd 64-bit multiplier (splitmix64's):
 
 
 # -- cleaning ---------------------------------------------------------------------------------
-def clean_closed_surface(vertices: np.ndarray, faces: np.ndarray) -> tuple[TriMesh, list[str], int]:
-    """Weld, drop degenerate and duplicate triangles, check closed, orient outward.
+def clean_closed_surface(
+    vertices: np.ndarray, faces: np.ndarray, parts: np.ndarray | None = None
+) -> tuple[TriMesh, list[str], int]:
+    """Weld, drop degenerate and duplicate triangles, split non-manifold edges, cap holes,
+    orient outward.
 
     Parameters
     ----------
     vertices : (m, 3) float64
     faces : (f, 3) int
+    parts : (f,) int, the file's object of each triangle (OBJ ``o``/``g``, STL ``solid``,
+        glTF mesh), or None: objects closed on their own are never welded to others
 
     Returns
     -------
-    (mesh, warnings, bodies)
+    (mesh, warnings, bodies): the mesh carries the caps, if any, after its own vertices and
+    faces (:attr:`TriMesh.cap_vertices`, :attr:`TriMesh.cap_faces`)
 
     Raises
     ------
     IsochorError
-        No triangles, an open surface, a surface that cannot be oriented, or no volume.
+        No triangles, a surface that cannot be oriented, or no solid to keep (flat, a flat
+        open sheet, loose triangles).
     """
     warns: list[str] = []
-    vertices, faces = weld(vertices, faces)
+    vertices, faces, apart = weld_parts(vertices, faces, parts)
+    if apart:
+        warns.append(
+            f"Kept {apart} separate objects of the file apart (not welded where they touch)."
+        )
     faces, n_degenerate = drop_degenerate(faces)
     faces, n_duplicate = drop_duplicates(faces)
     if n_degenerate:
@@ -76,10 +92,19 @@ def clean_closed_surface(vertices: np.ndarray, faces: np.ndarray) -> tuple[TriMe
     if n_degenerate or n_duplicate:  # (the weld keeps only the vertices in use)
         vertices, faces = compact(vertices, faces)
     report = EdgeReport.of(faces, len(vertices))
-    if report.boundary or report.non_manifold:
-        raise IsochorError(
-            f"the surface is not closed: {report.describe()}; Isochor needs a "
-            "closed surface (a solid) to measure a volume"
+    if report.non_manifold:
+        vertices, faces, cut = split_non_manifold(
+            faces, vertices, report.counts, report.edge_of_corner
+        )
+        report = EdgeReport.of(faces, len(vertices))
+        if report.non_manifold:
+            raise IsochorError(
+                f"the surface has {report.non_manifold} non-manifold edge(s) (shared by more "
+                "than two triangles) that cannot be split into separate sheets"
+            )
+        warns.append(
+            f"Split the surface into separate sheets along {cut} non-manifold edge(s) "
+            "(edges shared by more than two triangles)."
         )
     faces, n_flipped = fix_winding(faces, report)
     if n_flipped:
@@ -87,15 +112,21 @@ def clean_closed_surface(vertices: np.ndarray, faces: np.ndarray) -> tuple[TriMe
             f"Inconsistent winding repaired: {n_flipped} triangle(s) flipped to "
             "match their neighbours."
         )
+        report = EdgeReport.of(faces, len(vertices))
+    n_caps = n_cap_faces = 0
     labels, n_bodies = body_labels(faces, report)
+    if report.boundary:
+        sides, side_face = boundary_sides(faces, report.counts, report.edge_of_corner)
+        points, cap_faces, loop_of_side, n_caps = cap_holes(vertices, faces, sides)
+        n_cap_faces = len(cap_faces)
+        vertices = np.concatenate([vertices, points])
+        faces = np.concatenate([faces, cap_faces])
+        # a cap joins the bodies around its loop (no new edge report needed)
+        labels, n_bodies = _join_caps(labels, n_bodies, labels[side_face], loop_of_side, n_caps)
     arrangement = arrange(vertices, faces, labels, n_bodies)
     faces, turned_out, turned_in = orient(vertices, faces, labels, arrangement.depth)
     warns += _orientation_words(n_bodies, turned_out, turned_in)
-    for a, b in arrangement.overlaps:
-        warns.append(
-            f"Bodies {a + 1} and {b + 1} (of {n_bodies}, in file order) overlap: the volume "
-            "counts the part they share twice."
-        )
+    warns += overlap_words(vertices, faces, labels, n_bodies, arrangement)
     if not arrangement.checked:
         warns.append(
             f"{n_bodies} bodies: too large to check which lie inside or across others; "
@@ -103,9 +134,15 @@ def clean_closed_surface(vertices: np.ndarray, faces: np.ndarray) -> tuple[TriMe
         )
     # flat: the signed volume is lost in the rounding of the triangles' own volumes
     about_middle = tetra_volumes(vertices, faces, origin=np.median(vertices, axis=0))
+    if n_caps:
+        area = areas(vertices, faces)
+        warns += _capped_words(labels, n_bodies, about_middle, area, len(faces) - n_cap_faces)
+        own = len(faces) - n_cap_faces
+        capped = CapSummary(n_caps, n_cap_faces, float(area[own:].sum()), float(area[:own].sum()))
+        warns.insert(0, capped.sentence())
     volume = float(about_middle.sum())
     if not volume > 1e-9 * np.abs(about_middle).sum():
-        raise IsochorError("the surface encloses no volume (it is flat)")
+        raise IsochorError("the surface encloses no volume (it is flat): there is no solid to keep")
     far = far_vertices(vertices)
     # the lattice measures about the middle of the bounding box: a few far vertices move
     # it so far from the rest that the volume drowns in rounding there
@@ -119,7 +156,82 @@ def clean_closed_surface(vertices: np.ndarray, faces: np.ndarray) -> tuple[TriMe
             f"{far} vertex(es) lie far from the rest, more than {FAR:g} times the model's "
             "typical size away (a damaged file?); the lattice is fitted around them too."
         )
-    return TriMesh(vertices, faces), warns, n_bodies
+    return TriMesh(vertices, faces, n_caps, n_cap_faces), warns, n_bodies
+
+
+def _join_caps(labels, n_bodies, body_of_side, loop_of_side, n_loops):
+    """Body labels of the capped mesh: each loop's cap faces joined to the bodies whose
+    faces its rim runs along (bodies still numbered in order of their first face)."""
+    graph = sp.coo_matrix(
+        (np.ones(len(body_of_side)), (body_of_side, n_bodies + loop_of_side)),
+        shape=(n_bodies + n_loops, n_bodies + n_loops),
+    )
+    _, comp = connected_components(graph, directed=False)
+    return np.concatenate([comp[labels], comp[n_bodies + loop_of_side]]), int(comp.max()) + 1
+
+
+def overlap_words(vertices, faces, labels, n_bodies: int, arrangement) -> list[str]:
+    """One sentence per pair of overlapping bodies; two copies of one shape said so."""
+    words = []
+    if not arrangement.overlaps:
+        return words
+    counts = np.bincount(labels, minlength=n_bodies)
+    volumes = np.bincount(labels, weights=tetra_volumes(vertices, faces), minlength=n_bodies)
+
+    def extent(body: int) -> np.ndarray:
+        corners = vertices[faces[labels == body].ravel()]
+        return corners.max(axis=0) - corners.min(axis=0)
+
+    for a, b in arrangement.overlaps:
+        copies = (
+            counts[a] == counts[b]
+            and abs(volumes[a] - volumes[b]) <= 1e-3 * abs(volumes[a])
+            and np.allclose(extent(a), extent(b), rtol=0, atol=1e-3 * extent(a).max())
+        )
+        if copies:
+            words.append(
+                f"Bodies {a + 1} and {b + 1} (of {n_bodies}, in file order) are two overlapping "
+                "copies of one shape: each is kept as a solid, and the volume counts the part "
+                "they share twice."
+            )
+        else:
+            words.append(
+                f"Bodies {a + 1} and {b + 1} (of {n_bodies}, in file order) overlap: the volume "
+                "counts the part they share twice."
+            )
+    return words
+
+
+#: a capped body whose volume is below this times its area^1.5 encloses nothing (a ball
+#: has 0.094; a sheet capped flat has rounding)
+FLAT_CAPPED = 1e-6
+
+
+def _capped_words(labels, n_bodies, tetra, face_area, own_faces: int) -> list[str]:
+    """Refuse when no capped body encloses a volume (a flat open sheet, loose triangles);
+    a sentence for the flat open pieces among solid ones."""
+    capped = np.zeros(n_bodies, dtype=bool)
+    capped[labels[own_faces:]] = True
+    volume = np.abs(np.bincount(labels, weights=tetra, minlength=n_bodies))
+    rounding = np.bincount(labels, weights=np.abs(tetra), minlength=n_bodies)
+    area = np.bincount(labels, weights=face_area, minlength=n_bodies)
+    flat = capped & ((volume <= 1e-9 * rounding) | (volume <= FLAT_CAPPED * area**1.5))
+    if flat.all():
+        if n_bodies == 1:
+            raise IsochorError(
+                "the surface is a single flat open sheet: capping its hole encloses no "
+                "volume, so there is no solid to keep"
+            )
+        raise IsochorError(
+            f"the surface is {n_bodies} separate open pieces (loose triangles?), none of "
+            "which encloses a volume when its holes are capped: there is no solid to keep"
+        )
+    if flat.any():
+        return [
+            f"{int(flat.sum())} open piece(s) enclose no volume even capped (flat sheets): "
+            "they move with the model but hold no volume."
+        ]
+    return []
 
 
 def _orientation_words(n_bodies: int, turned_out: int, turned_in: int) -> list[str]:
@@ -147,10 +259,48 @@ def far_vertices(vertices: np.ndarray) -> int:
     return far if far <= max(1, len(vertices) // 100) else 0
 
 
+def weld_parts(
+    vertices: np.ndarray, faces: np.ndarray, parts: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`weld`, never joining a part that is closed on its own to another part (the
+    file's separate objects; parts open on their own, like an OBJ's groups of one surface,
+    are welded together as one). Returns (vertices, faces, closed parts kept apart: 0
+    when keeping them apart changed nothing)."""
+    if parts is None or len(parts) != len(faces) or np.all(parts == parts[0]):
+        return (*weld(vertices, faces), 0)
+    _, parts = np.unique(parts, return_inverse=True)
+    v, f, label = _per_part(vertices, faces, parts)
+    v, f = weld(v, f, labels=label)
+    report = EdgeReport.of(f, len(v))
+    bad = report.counts[report.edge_of_corner] != 2
+    open_part = np.zeros(int(parts.max()) + 1, dtype=bool)
+    open_part[parts[bad.any(axis=1)]] = True
+    closed = np.flatnonzero(~open_part)
+    if len(closed) < 1 or (len(closed) == 1 and not open_part.any()):
+        return (*weld(vertices, faces), 0)
+    group = np.where(open_part, -1, np.arange(len(open_part)))[parts]
+    v, f, label = _per_part(vertices, faces, group)
+    v, f = weld(v, f, labels=label)
+    together = weld(vertices, faces)[0]
+    return v, f, (len(closed) if len(v) > len(together) else 0)
+
+
+def _per_part(vertices, faces, parts):
+    """Vertices repeated for each part that uses them: (vertices, faces, part of each)."""
+    key = faces.ravel().astype(np.int64) * (int(parts.max()) + 2) + (np.repeat(parts, 3) + 1)
+    unique, inverse = np.unique(key, return_inverse=True)
+    n = int(parts.max()) + 2
+    return vertices[unique // n], inverse.reshape(-1, 3), unique % n
+
+
 def weld(
-    vertices: np.ndarray, faces: np.ndarray, tolerance: float = WELD_TOLERANCE
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    tolerance: float = WELD_TOLERANCE,
+    labels: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Merge vertices closer than ``tolerance`` times the model size (per coordinate grid).
+    """Merge vertices closer than ``tolerance`` times the model size (per coordinate grid);
+    with ``labels`` (one int per vertex), only vertices of the same label.
 
     Keeps the first vertex of each group and the file's vertex order (a model with nothing
     to weld keeps its vertex numbers); returns only referenced vertices.
@@ -169,6 +319,8 @@ def weld(
         size = min(size, 1e4 * typical)
     step = size * tolerance if size > 0 else 1.0
     keys = np.round((v - lo) / step).astype(np.int64)
+    if labels is not None:
+        keys = np.column_stack([keys, np.asarray(labels, dtype=np.int64)[used]])
     if not any_repeated_row(keys):  # nothing to weld: keep every used vertex, in order
         remap = np.empty(len(vertices), dtype=np.int64)
         remap[used] = np.arange(len(used))
@@ -395,8 +547,8 @@ def fix_winding(faces: np.ndarray, report: EdgeReport) -> tuple[np.ndarray, int]
     IsochorError
         The surface cannot be oriented (a Moebius-like surface).
     """
-    if report.unbalanced == 0:
-        return faces, 0
+    if report.unbalanced == 0 or not np.any(report.balance[report.counts >= 2]):
+        return faces, 0  # (a hole's rim is run one way only: that needs no flip)
     a, b, same = _face_pairs(report)
     n = len(faces)
     # state s of face f is node f + s*n; same direction on a shared edge = one of them flips

@@ -7,6 +7,9 @@
 - club-compression (Plate 3): the rounded club in a 5x2x2 lattice; its left end pushed in.
 - club-bend (Plate 7): the club bent along an arc of 160 degrees, almost a U; all layers
   but the middle one are moved onto the arc and fixed, the middle 2x2 layer is free.
+- cup-squeeze (Sec 1's container "whose capacity is given a priori"): the open cup in a
+  3x3x3 lattice, its waist pinched along x by a fifth of its width on each side; the rest
+  is free, and the capacity (the volume under the capped rim) is kept.
 
 Each is an ordinary :class:`~core.scenario.document.Scenario`, so the window, the command line, the
 benchmark and the tests all run exactly the same document.
@@ -29,6 +32,7 @@ EXAMPLES: dict[str, str] = {
     "torus-stretch": "Torus pulled at both ends of a 5x2x2 lattice (Plate 2)",
     "club-compression": "Rounded club pushed in at its thin end, 5x2x2 lattice (Plate 3)",
     "club-bend": "Rounded club bent along a 160-degree arc, 5x2x2 lattice (Plate 7)",
+    "cup-squeeze": "Open cup pinched at its waist, its capacity kept, 3x3x3 lattice",
 }
 
 
@@ -74,6 +78,13 @@ def example_scenario(name: str) -> Scenario:
             lat, lambda i, j, k: i <= 1, lambda ijk, p: (3 * d if ijk[0] == 0 else d, 0.0, 0.0)
         )
         model = {"builtin": "club"}
+    elif name == "cup-squeeze":
+        lat = _rest_lattice("cup", (3, 3, 3))
+        d = 0.2 * lat.axes[0, 0] / 2
+        moves = _moves(
+            lat, lambda i, j, k: k == 1 and i != 1, lambda ijk, p: (d if ijk[0] == 0 else -d, 0, 0)
+        )
+        model = {"builtin": "cup"}
     else:  # club-bend
         lat = _rest_lattice("club", (5, 2, 2))
         length = lat.axes[0, 0]

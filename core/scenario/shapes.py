@@ -9,6 +9,10 @@ finely in each direction as the last, so levels have about 4 times more triangle
 - sphere: the icosahedron subdivided 4-to-1 and projected, 20, 80, 320, ... triangles.
 - club: the paper's rounded club, a sphere deformed by a fixed FFD (a long body that swells
   towards one end), sampled like the sphere.
+- cup: an open container, one sheet of zero thickness (a flat bottom and a flared wall, open
+  at its rim), the paper's "container whose capacity is given a priori": its rim is capped
+  virtually (:mod:`isochor.core.io.caps`), so the volume kept is its capacity. 8 segments
+  by 4 rings, doubling in each direction level by level.
 """
 
 from __future__ import annotations
@@ -159,6 +163,48 @@ def club_levels(n_levels: int = 6) -> list[TriMesh]:
     ]
 
 
+def cup(segments: int, rings: int, radius: float = 1.0) -> TriMesh:
+    """An open cup around the z axis, open at the top (not capped): a flat bottom of radius
+    ``0.7 radius`` and a wall flaring to ``radius`` at height ``1.6 radius``, ``rings`` rings
+    of ``segments`` vertices on the profile (the bottom's centre apart), wound outward."""
+    t = np.linspace(0.0, 1.0, rings + 1)[1:]  # the profile past the bottom's centre
+    base = 0.35  # the first third of the profile is the bottom
+    r = np.where(
+        t <= base, 0.7 * t / base, 0.7 + 0.3 * np.clip((t - base) / (1 - base), 0, 1) ** 1.5
+    )
+    z = np.where(t <= base, 0.0, 1.6 * (t - base) / (1 - base))
+    angle = 2 * pi * np.arange(segments) / segments
+    ring = np.stack(
+        [
+            np.outer(r, np.cos(angle)),
+            np.outer(r, np.sin(angle)),
+            np.repeat(z, segments).reshape(rings, -1),
+        ],
+        axis=-1,
+    ).reshape(-1, 3)
+    verts = radius * np.vstack([[0.0, 0.0, 0.0], ring])
+    idx = lambda a, b: 1 + a * segments + b % segments  # noqa: E731
+    faces = [(0, idx(0, b + 1), idx(0, b)) for b in range(segments)]
+    for a in range(rings - 1):
+        for b in range(segments):
+            faces += [(idx(a, b), idx(a, b + 1), idx(a + 1, b + 1))]
+            faces += [(idx(a, b), idx(a + 1, b + 1), idx(a + 1, b))]
+    return TriMesh(verts, np.array(faces))
+
+
+def cup_levels(n_levels: int = 5, radius: float = 1.0) -> list[TriMesh]:
+    """The open cup, its rim capped: 8 segments x 4 rings, doubled each level."""
+    from ..io.repair import clean_closed_surface
+
+    return [
+        clean_closed_surface(*_arrays(cup(8 * 2**k, 4 * 2**k, radius)))[0] for k in range(n_levels)
+    ]
+
+
+def _arrays(mesh: TriMesh) -> tuple[np.ndarray, np.ndarray]:
+    return np.array(mesh.vertices), np.array(mesh.faces)
+
+
 def _outward(mesh: TriMesh) -> TriMesh:
     if signed_volume(mesh.vertices, mesh.faces) < 0:
         return TriMesh(mesh.vertices, mesh.faces[:, ::-1])
@@ -175,6 +221,7 @@ BUILTINS: dict[str, tuple[Callable[..., list[TriMesh]], str]] = {
     "torus": (torus_levels, "torus, major radius 1, minor radius 0.4, axis z"),
     "sphere": (sphere_levels, "unit sphere (icosphere levels)"),
     "club": (club_levels, "the paper's rounded club: a sphere deformed by an FFD"),
+    "cup": (cup_levels, "an open cup (one sheet, open at its rim): its capacity is kept"),
 }
 
 
