@@ -56,6 +56,7 @@ CORE_LAYERS = (
     {"kernels"},
     {"lattice", "mesh"},
     {"bodies", "springs", "volume"},
+    {"inside"},
     {"io"},
     {"goal"},
     {"solve"},
