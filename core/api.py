@@ -143,8 +143,8 @@ class Session:
             scenario, model = _open(Path(source))
         else:
             self._mesh = CallerMesh(source)
-            clean, warns, _ = clean_closed_surface(self._mesh.vertices, self._mesh.faces)
-            model = Model(tuple(build_pyramid(clean)), tuple(warns))
+            clean, warns, count = clean_closed_surface(self._mesh.vertices, self._mesh.faces)
+            model = Model(tuple(build_pyramid(clean, bodies=count)), tuple(warns), bodies=count)
             scenario = Scenario({"mesh": "in memory"})
         changes: dict[str, Any] = {}
         if lattice is not None:  # another lattice: a scenario's moves and pins name old nodes

@@ -252,11 +252,12 @@ def _examples(args: argparse.Namespace) -> int:
 def _solve(args: argparse.Namespace) -> int:
     """``isochor solve``: a :class:`isochor.core.api.Session` on the scenario (load, solve,
     report, export), its outputs checked before any work and written as one set."""
-    from ...core.api import Session
     from ...core.io.atomic import check_outputs, write_outputs
     from ...core.io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
     from ...core.scenario.document import Scenario
+    from .opening import one_shot, open_session
 
+    one_shot()  # before any model is made: building a shape evaluates volumes too
     if args.example is not None:
         from ...core.scenario.examples import example_scenario
 
@@ -285,7 +286,7 @@ def _solve(args: argparse.Namespace) -> int:
     ):
         raise IsochorError("--morph-target needs a glTF model and --out ending in .glb or .gltf")
     t0 = time.perf_counter()
-    session = Session(scenario)
+    session = open_session(scenario)
     for w in session.warnings:
         print(f"isochor: warning: {w}", file=sys.stderr)
     console = PipeSafe(sys.stdout)

@@ -52,7 +52,14 @@ class Bodies:
     volumes: np.ndarray  #: (bodies,) rest volume of each body (its shells' sum)
 
     @classmethod
-    def of(cls, mesh: TriMesh) -> Bodies:
+    def of(cls, mesh: TriMesh, count: int | None = None) -> Bodies:
+        """The bodies of ``mesh``; ``count``, when loading already counted them: one body
+        needs no labelling of faces, nor any containment test."""
+        if count == 1:
+            one = np.zeros(1, dtype=np.intp)
+            used = mesh.vertices if mesh.n_vertices else np.zeros((1, 3))
+            bodies = cls(one, used.mean(axis=0)[None], np.zeros(mesh.n_faces, np.intp), one)
+            return replace(bodies, volumes=bodies.measure(mesh.vertices, mesh.faces))
         labels, n = body_labels(mesh.faces)
         depth = arrange(mesh.vertices, mesh.faces, labels, n).inside
         solid = np.arange(n)

@@ -41,8 +41,9 @@ def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) 
     > 0.5`` are kept (signed ray crossings per grid column,
     :func:`isochor.core.inside.grid_winding`, whatever the mesh: several bodies, cavities,
     capped openings). A thin model (a flat torus) fills little of its box, so while fewer
-    than ``count / 2`` are inside, the grid is refined (twice at most). The grid never has more than ``budget / triangles`` points (the fold
-    guard's cost grows with them). Deterministic.
+    than ``count / 2`` are inside, the grid is refined (twice at most). The grid never has
+    more than ``budget / triangles`` points (the fold guard's cost grows with them).
+    Deterministic.
 
     Parameters
     ----------

@@ -66,13 +66,21 @@ CHUNK = 1 << 14
 _FACE_CHUNK = 1 << 15
 #: (point, triangle) pairs per range of winding-number work
 WINDING_PAIRS = 1 << 20
+#: a one-shot command (``isochor solve``) loads the kernels only for a model of at least
+#: this many triangles, and then waits for them before solving (:func:`worth`)
+WORTH_TRIANGLES = 200_000
+#: ... and starts them before loading a model file of at least this many bytes (about
+#: ``WORTH_TRIANGLES`` triangles of binary PLY), so that they load while the file does
+WORTH_BYTES = 20 * WORTH_TRIANGLES
 
 #: threads per call (:mod:`core.kernels.threads`)
 set_threads = _jitthreads.set_threads
 
 _log = logging.getLogger(__name__)
 _lock = threading.Lock()
-_state = SimpleNamespace(status="idle", reason="", kernels=None, thread=None, mode="auto")
+_state = SimpleNamespace(
+    status="idle", reason="", kernels=None, thread=None, mode="auto", autostart=True
+)
 #: ``mode``: the path this thread's running solve keeps (see :func:`one_path`)
 _local = threading.local()
 
@@ -112,9 +120,27 @@ def numpy_path():
         set_mode(previous)
 
 
-def start() -> None:
-    """Start loading the kernels in a background thread, unless started or switched off."""
-    if _off_by_env() or _state.status != "idle":
+def set_autostart(on: bool) -> bool:
+    """Whether loading a model and large evaluations start loading the kernels by
+    themselves (the default: right for the window and the API, whose process lives on).
+    A one-shot command turns it off and decides with :func:`worth`. Returns the previous
+    setting."""
+    previous, _state.autostart = _state.autostart, bool(on)
+    return previous
+
+
+def worth(triangles: int) -> bool:
+    """Whether a one-shot solve of a model of ``triangles`` triangles should wait for the
+    kernels: below :data:`WORTH_TRIANGLES` NumPy finishes the solve before numba would
+    have loaded (about 0.5 s from a warm cache), and loading it beside the solve on the
+    same cores only slows the solve down (the cold command rows of the benchmark)."""
+    return triangles >= WORTH_TRIANGLES
+
+
+def start(auto: bool = False) -> None:
+    """Start loading the kernels in a background thread, unless started or switched off
+    (with ``auto``: only where :func:`set_autostart` allows it)."""
+    if _off_by_env() or _state.status != "idle" or (auto and not _state.autostart):
         return
     with _lock:
         if _state.status != "idle":
@@ -146,7 +172,7 @@ def _kernels(size: int = 0) -> SimpleNamespace | None:
     if k is not None:
         return k if (getattr(_local, "mode", None) or _state.mode) == "auto" else None
     if size >= START_SIZE and _state.status == "idle":
-        start()
+        start(auto=True)
     return None
 
 

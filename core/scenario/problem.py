@@ -62,6 +62,9 @@ class Model:
     levels: tuple[TriMesh, ...]
     warnings: tuple[str, ...] = ()
     source: SourceFile | None = None
+    #: how many separate bodies the full mesh has, when loading counted them (None: not
+    #: known); a solve reuses it instead of labelling the faces again
+    bodies: int | None = None
 
 
 @dataclass
@@ -134,17 +137,17 @@ def load_model(path: str | Path) -> Model:
     """The level pyramid of a model file, the warnings of loading it and its fingerprint:
     the default :data:`ModelLoader`."""
     source = SourceFile.of(path)
-    kernels.start()  # (loaded in the background meanwhile: the pyramid's checks use them)
+    kernels.start(auto=True)  # loads in the background meanwhile: the pyramid checks use them
     loaded = load_mesh(path)
     levels = build_pyramid(loaded.mesh, bodies=loaded.bodies)
-    return Model(tuple(levels), tuple(loaded.warnings), source)
+    return Model(tuple(levels), tuple(loaded.warnings), source, loaded.bodies)
 
 
 def scenario_model(scenario: Scenario, loader: ModelLoader | None = None) -> Model:
     """The scenario's model: a built-in shape's levels, or its file loaded."""
     if "builtin" in scenario.model:
         params = {k: v for k, v in scenario.model.items() if k != "builtin"}
-        return Model(tuple(builtin_levels(scenario.model["builtin"], **params)))
+        return Model(tuple(builtin_levels(scenario.model["builtin"], **params)), bodies=1)
     path = scenario.model_path()
     if not path.exists():
         what = "a loop of symbolic links" if path.is_symlink() else "no such file"
@@ -191,6 +194,6 @@ def build(
         lattice = Lattice(scenario.lattice_nodes, scenario.frame[0], scenario.frame[1])
     nodes, fixed = scenario.edit.apply(lattice)
     Mirror.of(lattice, scenario.goal.symmetry)  # a frame the mirror cannot use fails here
-    surface = EmbeddedSurface(lattice, levels)
+    surface = EmbeddedSurface(lattice, levels, n_bodies=model.bodies)
     fit = coverage(lattice, surface.full.vertices)
     return Problem(scenario, surface, nodes, fixed, model, fit)

@@ -15,7 +15,6 @@ import warnings
 from collections.abc import Callable, Generator
 
 import numpy as np
-from scipy.optimize import line_search
 
 from ..kernels import step as stepkernels
 from ..kernels.pairs import Pairs
@@ -82,6 +81,10 @@ def lbfgs(
             if f_try <= f + 1e-4 * slope and abs(g_try @ d) <= 0.9 * abs(slope):
                 step = x_try, f_try, g_try, aux_try
         if step is None:
+            # imported here: scipy.optimize costs a cold command about 0.25 s, and most
+            # solves never need it (the quasi-Newton step usually fits)
+            from scipy.optimize import line_search
+
             with warnings.catch_warnings():
                 warnings.filterwarnings("ignore", "The line search algorithm")
                 alpha, *_ = line_search(
