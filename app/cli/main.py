@@ -58,6 +58,7 @@ from .console import (  # noqa: E402
     EXIT_OK,
     EXIT_USAGE,
     PipeSafe,
+    ProgressLine,
 )
 
 # One BLAS thread unless the user says otherwise: the lattice products are small and the
@@ -286,11 +287,16 @@ def _solve(args: argparse.Namespace) -> int:
     ):
         raise IsochorError("--morph-target needs a glTF model and --out ending in .glb or .gltf")
     t0 = time.perf_counter()
-    session = open_session(scenario)
-    for w in session.warnings:
-        print(f"isochor: warning: {w}", file=sys.stderr)
-    console = PipeSafe(sys.stdout)
-    result = run_solve(session, None if args.quiet else console)
+    line = ProgressLine(sys.stderr)  # on a terminal only, for a load or solve that takes long
+    try:
+        session = open_session(scenario, progress=line if line.on else None)
+        line.clear()
+        for w in session.warnings:
+            print(f"isochor: warning: {w}", file=sys.stderr)
+        console = PipeSafe(sys.stdout)
+        result = run_solve(session, None if args.quiet else console, line)
+    finally:
+        line.close()
     total = time.perf_counter() - t0
     exported = None
     if args.out is not None:
@@ -333,9 +339,11 @@ def _goal(goal: Goal, args: argparse.Namespace) -> Goal:
     return goal.with_(**changes) if changes else goal
 
 
-def run_solve(session: Session, out: TextIO | None = None) -> SolveResult:
+def run_solve(
+    session: Session, out: TextIO | None = None, line: ProgressLine | None = None
+) -> SolveResult:
     """Drive the session's solve (:meth:`isochor.core.api.Session.steps`) to its end,
-    printing one row per level.
+    printing one row per level (the progress ``line`` wiped before each).
 
     Ctrl-C closes the generator (the solve stops at once) and is raised again.
 
@@ -347,6 +355,8 @@ def run_solve(session: Session, out: TextIO | None = None) -> SolveResult:
 
     run = session.steps()
     if out is not None:
+        if line is not None:
+            line.clear()
         print(
             f"{'level':>5} {'triangles':>10} {'max dX %':>9} {'steps':>6} {'ms':>8} {'|dV|/V0':>9}",
             file=out,
@@ -356,6 +366,8 @@ def run_solve(session: Session, out: TextIO | None = None) -> SolveResult:
 
     def row(p) -> None:
         if p.level_done and out is not None:
+            if line is not None:
+                line.clear()
             change = 100 * p.max_node_change if p.max_node_change is not None else 0.0
             print(
                 f"{p.level:>5} {p.triangles:>10} {change:>9.3f} {p.step:>6} "
