@@ -30,11 +30,11 @@ from functools import cached_property
 
 import numpy as np
 
-from ..bodies import arrange
+from ..bodies import arrange, tetra_volumes
 from ..io.repair import body_labels, compact
 from ..lattice import Lattice, PointBasis
 from ..mesh import TriMesh
-from ..volume import MomentOperator, VolumeOperator, face_volumes
+from ..volume import MomentOperator, VolumeOperator
 from .spec import Goal
 
 #: the centroid is held to this fraction of the volume tolerance, in object sizes
@@ -76,8 +76,10 @@ class Bodies:
         return replace(bodies, volumes=bodies.measure(mesh.vertices, mesh.faces))
 
     def measure(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-        """(bodies,) volume of each body of the full mesh with these vertex positions."""
-        vols = face_volumes(vertices, faces)
+        """(bodies,) volume of each body of the full mesh with these vertex positions
+        (:func:`isochor.core.bodies.tetra_volumes`: the numbers of
+        :func:`isochor.core.volume.face_volumes`, three times faster)."""
+        vols = tetra_volumes(vertices, faces)
         return np.bincount(
             self.solid_of_face, weights=vols, minlength=self.solid_of_shell.max() + 1
         )

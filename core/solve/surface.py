@@ -88,6 +88,12 @@ class EmbeddedSurface:
         """The full mesh's solid bodies (shells with their cavities)."""
         return Bodies.of(self.full, self.n_bodies)
 
+    @property
+    def body_count(self) -> int:
+        """How many bodies the full mesh has: as loading counted them, else from
+        :attr:`bodies` (which measures each one's volume)."""
+        return self.n_bodies if self.n_bodies is not None else self.bodies.count
+
     def constraints(self, k: int, goal: Goal, extra: HandleSystem | None = None) -> Constraints:
         """The goal's constraints on level ``k`` (and the handles', when given)."""
         bodies = self.bodies if goal.preserve == "per-body" else None
