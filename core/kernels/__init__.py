@@ -30,7 +30,9 @@ Each returns None when the compiled kernels are not there (yet); the caller then
 NumPy code. They are there once numba (the ``fast`` extra) imports and has compiled them.
 Compiling never happens in the caller: :func:`start` (called by ``load_model`` and by the
 first evaluation of ``START_SIZE`` points or faces) loads them in a background thread from
-numba's on-disk cache (:mod:`core.kernels.base`), and NumPy serves until that is done. With an
+numba's on-disk cache (:mod:`core.kernels.base`), and NumPy serves until that is done. A
+one-shot command turns that off (:func:`set_autostart`) and asks :func:`worth`: numba only
+for a big model, waited for (``isochor solve``, :mod:`isochor.app.cli.opening`). With an
 empty cache a child interpreter compiles them first (:mod:`core.kernels.cache`). Whatever
 goes wrong (numba missing, an import or compile error, a failed self-check, a compiled call
 that raises) leaves the NumPy path in place; :func:`status` says why. A solve keeps the
