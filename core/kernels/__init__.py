@@ -69,8 +69,11 @@ _FACE_CHUNK = 1 << 15
 #: (point, triangle) pairs per range of winding-number work
 WINDING_PAIRS = 1 << 20
 #: a one-shot command (``isochor solve``) loads the kernels only for a model of at least
-#: this many triangles, and then waits for them before solving (:func:`worth`)
-WORTH_TRIANGLES = 200_000
+#: this many triangles, and then waits for them before solving (:func:`worth`). Measured
+#: (the benchmark's First use rows, a loaded machine): the 346k armadillo's cold command
+#: took 8.7 s waiting for numba against 7.5 s on NumPy; at 1.38M the compiled release
+#: solve is about 4x faster than NumPy's and loading numba hides behind reading the file
+WORTH_TRIANGLES = 1_000_000
 #: ... and starts them before loading a model file of at least this many bytes (about
 #: ``WORTH_TRIANGLES`` triangles of binary PLY), so that they load while the file does
 WORTH_BYTES = 20 * WORTH_TRIANGLES
@@ -133,9 +136,10 @@ def set_autostart(on: bool) -> bool:
 
 def worth(triangles: int) -> bool:
     """Whether a one-shot solve of a model of ``triangles`` triangles should wait for the
-    kernels: below :data:`WORTH_TRIANGLES` NumPy finishes the solve before numba would
-    have loaded (about 0.5 s from a warm cache), and loading it beside the solve on the
-    same cores only slows the solve down (the cold command rows of the benchmark)."""
+    kernels: below :data:`WORTH_TRIANGLES` the compiled solve saves less than loading
+    numba costs the command (about 0.5 s of CPU from a warm cache, and its threads on the
+    same cores), and loading it beside a NumPy solve only slows that down (the cold
+    command rows of the benchmark)."""
     return triangles >= WORTH_TRIANGLES
 
 
