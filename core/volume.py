@@ -181,8 +181,9 @@ class VolumeOperator:
         faces_t = np.ascontiguousarray(self.faces.T, dtype=np.intp)
         if f and (faces_t.min() < 0 or faces_t.max() >= n):
             raise ValueError(f"face indices must lie in [0, {n}) for {n} vertices")
-        self._corners = tuple(faces_t)  # for the volume-only path
-        self._fans = self._sorted = None  # for the compiled path, made on its first use
+        self._faces_t = faces_t  # (3, f): the compiled volume's corners
+        self._corners = tuple(faces_t)  # for the volume-only path (views of its rows)
+        self._fans = None  # for the compiled path, made on its first use
         #: the edges and their scatter matrix (the gradient's), made on its first use: a
         #: level that is only measured (the full mesh of most solves) never needs them
         self._edge_data: _Edges | None = None
@@ -247,12 +248,11 @@ class VolumeOperator:
     def __call__(self, vertices: np.ndarray, center: np.ndarray | None = None) -> float:
         """Signed volume only."""
         if len(vertices) == self.n_vertices and kernels.active(len(self.faces)):
-            if self._sorted is None:
-                # the faces in their own order: sorting them by their lowest vertex (for
-                # fewer cache misses) gained nothing measurable on the 1.38M armadillo and
-                # cost the first solve 1.7-2.3 s
-                self._sorted = np.ascontiguousarray(self.faces.T)
-            fast = kernels.face_volume(self._sorted, _coordinate_rows(vertices, None), center)
+            # the faces in their own order: sorting them by their lowest vertex (for fewer
+            # cache misses) gained nothing measurable on the 1.38M armadillo and cost the
+            # first solve 1.7-2.3 s; no copy either (24 bytes a triangle)
+            corners = self._faces_t
+            fast = kernels.face_volume(corners, _coordinate_rows(vertices, None), center)
             if fast is not None:
                 return fast
         return _triple_product_sum(_coordinate_rows(vertices, center), *self._corners) / 6.0
