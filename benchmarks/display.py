@@ -49,6 +49,8 @@ LOAD_WHY = (
 FIRST_EVALUATION_TARGET = 0.020
 #: a drag's frame (ms), per case
 LIVE_TARGET = {"armadillo 1.38M": 33.0}
+#: the solve when a drag ends (ms), per case (issue 27); the others: converged only
+RELEASE_TARGET = {"armadillo 1.38M": 50.0}
 LIVE_DEFAULT = 16.0
 
 
@@ -90,9 +92,14 @@ def _drag_rows(what: str, problem, repeats: int) -> list[Row]:
     rel_why = f"without the preconditioner {plain.release.ms()} ms"
     if not d.release_ok:
         rel_why = "a release solve did not converge"
+    release_ms = RELEASE_TARGET.get(what)
+    rel_target, rel_ok = "converged", d.release_ok
+    if release_ms is not None:
+        rel_target = f"converged, <= {release_ms:g} ms"
+        rel_ok = d.release_ok and d.release.median * 1e3 <= release_ms
     return [
         Row(f"drag frame (live), {what}", d.frames, f"<= {target:g} ms", frame_ok, why),
-        Row(f"solve on release, {what}", d.release, "converged", d.release_ok, rel_why),
+        Row(f"solve on release, {what}", d.release, rel_target, rel_ok, rel_why),
     ]
 
 

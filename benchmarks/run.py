@@ -24,6 +24,9 @@ from benchmarks.constraints_report import section, write_section
 from benchmarks.display import HEADING as DISPLAY_HEADING
 from benchmarks.display import run_display
 from benchmarks.display import section as display_section
+from benchmarks.first_use import HEADING as FIRST_USE_HEADING
+from benchmarks.first_use import run_first_use
+from benchmarks.first_use import section as first_use_section
 from benchmarks.profiling import SolveProfile, profile_solve
 from benchmarks.report import (
     DEFAULT_OUT,
@@ -89,7 +92,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="do not draw Figures 5-8")
     p.add_argument(
         "--only",
-        choices=("constraints", "sequences", "display", "caps"),
+        choices=("constraints", "sequences", "display", "caps", "first-use"),
         default=None,
         help="run one section only; the report keeps its other sections and gets this one replaced",
     )
@@ -212,6 +215,8 @@ def main(
         return run_display_section(models, repeats, command, out)
     if args.only == "caps":
         return run_caps_section(models, repeats, command, out)
+    if args.only == "first-use":
+        return run_first_use_section(models, repeats, quick, command, out)
     res = Results(env, quick, repeats, [], command=command)
 
     print("Table 1")
@@ -298,6 +303,7 @@ def main(
         run_sequences_section(models, repeats, command, out)
         run_display_section(models, repeats, command, out)
         run_caps_section(models, repeats, command, out)
+        run_first_use_section(models, repeats, quick, command, out)
     return 0
 
 
@@ -308,6 +314,18 @@ def run_sequences_section(models: Path, repeats: int, command: str, out: Path | 
         lambda: run_sequences(models, reps),
         lambda rows, notes: sequences_section(rows, notes, command, reps),
         SEQUENCES_HEADING,
+        out,
+    )
+
+
+def run_first_use_section(
+    models: Path, repeats: int, quick: bool, command: str, out: Path | None
+) -> int:
+    return only_section(
+        "First use: the first solve, a cold command, big models (medians)",
+        lambda: run_first_use(models, repeats, quick),
+        lambda rows, notes: first_use_section(rows, notes, command),
+        FIRST_USE_HEADING,
         out,
     )
 

@@ -9,7 +9,7 @@ hold one role each. Arrows point down this list, never up (``tests/test_structur
     solve/       the multi-level loop, augmented Lagrangian, L-BFGS, records
     goal/        what a solve holds: volume per body, centroid, handles, anchor, symmetry, folds
     io/          read, repair, rewrite and write model files (OBJ, PLY, STL, OFF, glTF)
-    mesh, lattice, volume, springs, bodies   the paper's geometry (Eq 2-14)
+    mesh, lattice, volume, springs, bodies, inside   the paper's geometry (Eq 2-14)
     kernels/     optional compiled (numba) hot loops, NumPy fallback
     errors, defaults, validate               what every module shares
 
@@ -26,6 +26,8 @@ Modules at this level:
   moment (centre of mass) and its gradient
 - :mod:`.springs`   the spring network: 6 axis + 8 body-diagonal neighbours (Eq 14)
 - :mod:`.bodies`    separate closed bodies of one model: cavities, overlaps (winding numbers)
+- :mod:`.inside`    which points of a regular grid are inside a closed mesh (signed ray
+  crossings per grid column; the fold guard's interior samples)
 - :mod:`.api`       the Python API: ``deform``, ``Session``, ``load``
 - :mod:`.adapters`  the mesh types the API takes and gives back (arrays, trimesh, pyvista)
 - :mod:`.export`    the one export path (``--out``, the window's Export, ``Session.export``)

@@ -37,11 +37,19 @@ from .mesh import TriMesh
 from .report import make_report
 from .scenario.document import VERSION, Move, Scenario
 from .scenario.poses import Pose, Timeline
-from .scenario.problem import Model, Problem, build, default_lattice_shape, scenario_model
+from .scenario.problem import (
+    READ_SHARE,
+    Model,
+    Problem,
+    ProgressCallback,
+    build,
+    default_lattice_shape,
+    pyramid_of,
+    scenario_model,
+)
 from .scenario.sequence import Sequence as Solved
 from .scenario.sequence import solve_sequence
-from .solve.generators import run_to_end
-from .solve.pyramid import build_pyramid
+from .solve.generators import relay, run_to_end
 from .solve.records import Progress, SolveResult
 
 Node = tuple[int, int, int]
@@ -86,6 +94,10 @@ class Session:
     padding : the lattice box around the model's bounding box, a fraction of its extent
     frame : ``(origin, axes)``: an explicit lattice box instead (rows of ``axes`` are its
         three edge vectors)
+    progress : ``callable(stage, fraction)``, told how far the work is: ``("load", f)``
+        while the model loads and its level pyramid is made (here), ``("solve", f)`` during
+        every solve (f from 0 to 1, never decreasing within a stage; 1 at its end). It is
+        called on the thread that does the work: keep it quick
     goal : what the solve holds, by the keywords of
         :data:`~isochor.core.goal.spec.GOAL_FIELDS` (each field's ``keyword``):
 
@@ -137,21 +149,29 @@ class Session:
         frame: tuple[Sequence[float], Sequence[Sequence[float]]] | None = None,
         basis: str | Sequence[str] | None = None,
         outside: bool | None = None,
+        progress: ProgressCallback | None = None,
         **goal: Any,
     ) -> None:
         by_keyword = {f.keyword: f for f in GOAL_FIELDS}
         for name in goal:
             if name not in by_keyword:
                 raise TypeError(f"Session() got an unexpected keyword argument {name!r}")
+        if progress is not None and not callable(progress):
+            raise IsochorError("progress must be a callable(stage, fraction), or None")
+        #: ``callable(stage, fraction)`` told how far loading and each solve are, or None
+        self.progress = progress
         self._mesh: CallerMesh | None = None
         if isinstance(source, Scenario):
-            scenario, model = source, scenario_model(source)
+            scenario, model = source, scenario_model(source, progress=progress)
         elif isinstance(source, (str, Path)):
-            scenario, model = _open(Path(source))
+            scenario, model = _open(Path(source), progress)
         else:
             self._mesh = CallerMesh(source)
-            clean, warns, _ = clean_closed_surface(self._mesh.vertices, self._mesh.faces)
-            model = Model(tuple(build_pyramid(clean)), tuple(warns))
+            if progress is not None:
+                progress("load", 0.0)
+            clean, warns, count = clean_closed_surface(self._mesh.vertices, self._mesh.faces)
+            levels = pyramid_of(clean, count, progress, READ_SHARE)
+            model = Model(tuple(levels), tuple(warns), bodies=count)
             scenario = Scenario({"mesh": "in memory"})
         changes: dict[str, Any] = {}
         if lattice is not None:  # another lattice: a scenario's moves and pins name old nodes
@@ -278,9 +298,10 @@ class Session:
         """Solve step by step: yields a :class:`~isochor.core.solve.records.Progress` record per
         inner step and level, returns the result; the session's nodes become the result's.
         Closing the generator stops the solve and keeps the nodes as they were."""
-        result = yield from self.problem.solve(
-            self.nodes, self.fixed, goal=self.goal, handles=self.handles
-        )
+        run = self.problem.solve(self.nodes, self.fixed, goal=self.goal, handles=self.handles)
+        if self.progress is not None:
+            run = _reporting(run, self.progress)
+        result = yield from run
         self.nodes = np.array(result.nodes)
         self.result = result
         return result
@@ -377,17 +398,31 @@ class Session:
         self.scenario().write(path)
 
 
+def _reporting(run, progress: ProgressCallback):
+    """The solve ``run``, telling ``progress`` ``("solve", fraction)`` at every record
+    (:attr:`~isochor.core.solve.records.Progress.fraction`) and 1 at its end."""
+
+    def tell(record: Progress) -> Progress:
+        progress("solve", record.fraction)
+        return record
+
+    progress("solve", 0.0)
+    result = yield from relay(run, tell)
+    progress("solve", 1.0)
+    return result
+
+
 def _names_scenario(source: str | Path | Scenario) -> bool:
     """Whether ``source`` is a scenario (its lattice is the session's) or a model file."""
     return isinstance(source, Scenario) or is_scenario(Path(source))
 
 
-def _open(path: Path) -> tuple[Scenario, Model]:
+def _open(path: Path, progress: ProgressCallback | None = None) -> tuple[Scenario, Model]:
     if is_scenario(path):
         scenario = Scenario.read(path)
-        return scenario, scenario_model(scenario)
+        return scenario, scenario_model(scenario, progress=progress)
     scenario = Scenario.from_dict({"model": {"path": str(path.absolute())}})
-    return scenario, scenario_model(scenario)
+    return scenario, scenario_model(scenario, progress=progress)
 
 
 def load(path: str | Path, **options: Any) -> Session:
@@ -418,8 +453,9 @@ def deform(
         kept on some axes only
     handles : ``{"at": [x, y, z], "to": [x, y, z]}`` (or
         :class:`~isochor.core.goal.handles.Handle`): the mesh's point ``at`` must land at ``to``
-    options : ``padding``, ``frame``, ``basis``, ``outside`` and the goal's keywords
-        (``target``: the volume to reach relative to the mesh's, 1 by default;
+    options : ``padding``, ``frame``, ``basis``, ``outside``, ``progress``
+        (``callable(stage, fraction)``: how far loading and the solve are) and the goal's
+        keywords (``target``: the volume to reach relative to the mesh's, 1 by default;
         ``preserve``, ``keep_centroid``, ``anchor``, ``fold_guard``, ``symmetry``): see
         :class:`Session`
 

@@ -39,6 +39,8 @@ models: the fans' cross products are of edge vectors, not of positions).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -148,6 +150,18 @@ def _coordinate_rows(vertices: np.ndarray, center: np.ndarray | None) -> np.ndar
     return out
 
 
+class _Edges(NamedTuple):
+    """A mesh's undirected edges (sorted by their end points) and the signed
+    edge-to-vertex scatter matrix, whole and in blocks of columns."""
+
+    ej: np.ndarray
+    ek: np.ndarray
+    n_edges: int
+    scatter: sp.csc_matrix
+    width: int
+    blocks: list
+
+
 class VolumeOperator:
     """Volume and its gradient for a fixed face list; vertex positions vary.
 
@@ -167,8 +181,24 @@ class VolumeOperator:
         faces_t = np.ascontiguousarray(self.faces.T, dtype=np.intp)
         if f and (faces_t.min() < 0 or faces_t.max() >= n):
             raise ValueError(f"face indices must lie in [0, {n}) for {n} vertices")
-        self._corners = tuple(faces_t)  # for the volume-only path
-        self._fans = self._sorted = None  # for the compiled path, made on its first use
+        self._faces_t = faces_t  # (3, f): the compiled volume's corners
+        self._corners = tuple(faces_t)  # for the volume-only path (views of its rows)
+        self._fans = None  # for the compiled path, made on its first use
+        #: the edges and their scatter matrix (the gradient's), made on its first use: a
+        #: level that is only measured (the full mesh of most solves) never needs them
+        self._edge_data: _Edges | None = None
+
+    @property
+    def n_edges(self) -> int:
+        return self._edges().n_edges
+
+    def _edges(self) -> _Edges:
+        """The mesh's edges grouped for the gradient (built once)."""
+        edges = self._edge_data
+        if edges is not None:
+            return edges
+        faces_t = np.ascontiguousarray(self.faces.T, dtype=np.intp)
+        n, f = self.n_vertices, len(self.faces)
         # Half-edges j -> k of every face, and the vertex o opposite each one.
         src = faces_t.ravel()
         dst = faces_t[[1, 2, 0]].ravel()
@@ -193,12 +223,12 @@ class VolumeOperator:
         first = np.ones(len(lo), dtype=bool)
         first[1:] = (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])
         starts = np.flatnonzero(first)
-        self._ej, self._ek = lo[starts], hi[starts]
-        self.n_edges = e = len(starts)
+        ej, ek = lo[starts], hi[starts]
+        e = len(starts)
         # The scatter matrix, column by edge: its half-edges' opposite vertices with
         # +1/6 (P_j x P_k, j < k) or -1/6 (the half-edge runs k -> j).
         index = np.int32 if max(n, 3 * f) < 2**31 - 1 else np.int64
-        self._scatter = sp.csc_matrix(
+        scatter = sp.csc_matrix(
             (
                 np.where(backwards, -1.0 / 6.0, 1.0 / 6.0),
                 opp.astype(index),
@@ -206,20 +236,23 @@ class VolumeOperator:
             ),
             shape=(n, e),
         )
-        ip, ind, dat = self._scatter.indptr, self._scatter.indices, self._scatter.data
-        self._width = width = max(1, min(BLOCK, e))
-        self._blocks = [
+        ip, ind, dat = scatter.indptr, scatter.indices, scatter.data
+        width = max(1, min(BLOCK, e))
+        blocks = [
             (s, t, ip[s : t + 1] - ip[s], ind[ip[s] : ip[t]], dat[ip[s] : ip[t]])
             for s, t in ((s, min(s + width, e)) for s in range(0, e, width))
         ]
+        self._edge_data = edges = _Edges(ej, ek, e, scatter, width, blocks)
+        return edges
 
     def __call__(self, vertices: np.ndarray, center: np.ndarray | None = None) -> float:
         """Signed volume only."""
         if len(vertices) == self.n_vertices and kernels.active(len(self.faces)):
-            if self._sorted is None:  # faces by their lowest vertex: fewer cache misses
-                order = np.argsort(self.faces.min(axis=1), kind="stable")
-                self._sorted = np.ascontiguousarray(self.faces[order].T, dtype=np.int64)
-            fast = kernels.face_volume(self._sorted, _coordinate_rows(vertices, None), center)
+            # the faces in their own order: sorting them by their lowest vertex (for fewer
+            # cache misses) gained nothing measurable on the 1.38M armadillo and cost the
+            # first solve 1.7-2.3 s; no copy either (24 bytes a triangle)
+            corners = self._faces_t
+            fast = kernels.face_volume(corners, _coordinate_rows(vertices, None), center)
             if fast is not None:
                 return fast
         return _triple_product_sum(_coordinate_rows(vertices, center), *self._corners) / 6.0
@@ -240,8 +273,9 @@ class VolumeOperator:
         fast = self._compiled(vertices, center)
         if fast is not None:
             return fast
-        n, e = self.n_vertices, self.n_edges
-        ej, ek = self._ej, self._ek
+        edges = self._edges()
+        n, e = self.n_vertices, edges.n_edges
+        ej, ek = edges.ej, edges.ek
         grad = np.zeros((3, n))
         gx, gy, gz = grad
         if e <= SMALL and _csc_matvec is not None:
@@ -249,15 +283,15 @@ class VolumeOperator:
             a, b = v5.take(ej, axis=1), v5.take(ek, axis=1)
             c = a[1:4] * b[2:5]  # rows: (P_j x P_k) x, y, z
             c -= a[2:5] * b[1:4]
-            s = self._scatter
+            s = edges.scatter
             for row, out in zip(c, grad):
                 _csc_matvec(n, e, s.indptr, s.indices, s.data, row, out)
             return float(np.einsum("ij,ij->", v5[:3], grad)) / 3.0, grad.T
         vt = _coordinate_rows(vertices, center)
         x, y, z = vt
-        width = self._width
+        width = edges.width
         buf = np.empty((10, width))
-        for s, t, indptr, indices, data in self._blocks:
+        for s, t, indptr, indices, data in edges.blocks:
             m = t - s
             if m != width:
                 buf = buf[:, :m]

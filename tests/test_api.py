@@ -110,7 +110,7 @@ def test_a_session_solves_three_edits_reusing_its_pyramid(monkeypatch):
     monkeypatch.setattr(
         isochor.core.lattice.Lattice, "basis", lambda self, p: bases.append(len(p)) or real(self, p)
     )
-    monkeypatch.setattr(isochor.core.api, "build_pyramid", None)  # would fail if called
+    monkeypatch.setattr(isochor.core.api, "pyramid_of", None)  # would fail if called
     session.move((2, 1, 1), by=(0.2, 0, 0))
     second = session.solve()
     corner = session.lattice.index(2, 2, 2)

@@ -319,3 +319,41 @@ def test_one_compiling_child_at_a_time(tmp_path, monkeypatch):
     old = time.time() - 2 * _jitcache.COMPILE_LIMIT  # a lock left by a killed process
     os.utime(lock, (old, old))
     assert not _jitcache.held(lock) and _jitcache.take(lock) and _jitcache.held(lock)
+
+
+def test_a_one_shot_command_loads_numba_only_for_a_big_model():
+    """``isochor solve`` on an example (65k triangles at most) never imports numba; the
+    policy says which sizes wait for it; without the one-shot setting a large evaluation
+    starts the kernels by itself (the window and the API)."""
+    from tests.fresh import run_fresh
+
+    code = textwrap.dedent(
+        """
+        import os
+        os.environ.pop("ISOCHOR_NO_JIT", None)
+        from isochor.app.cli.main import main
+        rc = main(["solve", "--example", "club-compression", "-q"])
+        from isochor.core import kernels
+        print("RC", rc, kernels.status())
+        """
+    )
+    proc, loaded = run_fresh(code, extra=frozenset({"numba"}))
+    assert "RC 0 idle" in proc.stdout, proc.stderr
+    assert "numba" not in loaded
+    assert not kernels.worth(kernels.WORTH_TRIANGLES - 1) and kernels.worth(kernels.WORTH_TRIANGLES)
+    code = textwrap.dedent(
+        """
+        import os
+        os.environ.pop("ISOCHOR_NO_JIT", None)
+        from isochor.core import kernels
+        previous = kernels.set_autostart(False)
+        kernels.active(10**6)
+        held = kernels.status()
+        kernels.set_autostart(previous)
+        kernels.active(10**6)
+        print("STATES", held, kernels.status())
+        """
+    )
+    proc, _ = run_fresh(code)
+    held, after = proc.stdout.split("STATES ")[1].split()[:2]
+    assert held == "idle" and after != "idle", proc.stderr  # loading (or failed: no numba)

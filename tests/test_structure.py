@@ -57,6 +57,7 @@ CORE_LAYERS = (
     {"localbasis"},
     {"lattice", "mesh"},
     {"bodies", "springs", "volume"},
+    {"inside"},
     {"io"},
     {"goal"},
     {"solve"},

@@ -58,6 +58,7 @@ from .console import (  # noqa: E402
     EXIT_OK,
     EXIT_USAGE,
     PipeSafe,
+    ProgressLine,
 )
 
 # One BLAS thread unless the user says otherwise: the lattice products are small and the
@@ -252,11 +253,12 @@ def _examples(args: argparse.Namespace) -> int:
 def _solve(args: argparse.Namespace) -> int:
     """``isochor solve``: a :class:`isochor.core.api.Session` on the scenario (load, solve,
     report, export), its outputs checked before any work and written as one set."""
-    from ...core.api import Session
     from ...core.io.atomic import check_outputs, write_outputs
     from ...core.io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
     from ...core.scenario.document import Scenario
+    from .opening import one_shot, open_session
 
+    one_shot()  # before any model is made: building a shape evaluates volumes too
     if args.example is not None:
         from ...core.scenario.examples import example_scenario
 
@@ -285,11 +287,16 @@ def _solve(args: argparse.Namespace) -> int:
     ):
         raise IsochorError("--morph-target needs a glTF model and --out ending in .glb or .gltf")
     t0 = time.perf_counter()
-    session = Session(scenario)
-    for w in session.warnings:
-        print(f"isochor: warning: {w}", file=sys.stderr)
-    console = PipeSafe(sys.stdout)
-    result = run_solve(session, None if args.quiet else console)
+    line = ProgressLine(sys.stderr)  # on a terminal only, for a load or solve that takes long
+    try:
+        session = open_session(scenario, progress=line if line.on else None)
+        line.clear()
+        for w in session.warnings:
+            print(f"isochor: warning: {w}", file=sys.stderr)
+        console = PipeSafe(sys.stdout)
+        result = run_solve(session, None if args.quiet else console, line)
+    finally:
+        line.close()
     total = time.perf_counter() - t0
     exported = None
     if args.out is not None:
@@ -332,9 +339,11 @@ def _goal(goal: Goal, args: argparse.Namespace) -> Goal:
     return goal.with_(**changes) if changes else goal
 
 
-def run_solve(session: Session, out: TextIO | None = None) -> SolveResult:
+def run_solve(
+    session: Session, out: TextIO | None = None, line: ProgressLine | None = None
+) -> SolveResult:
     """Drive the session's solve (:meth:`isochor.core.api.Session.steps`) to its end,
-    printing one row per level.
+    printing one row per level (the progress ``line`` wiped before each).
 
     Ctrl-C closes the generator (the solve stops at once) and is raised again.
 
@@ -346,6 +355,8 @@ def run_solve(session: Session, out: TextIO | None = None) -> SolveResult:
 
     run = session.steps()
     if out is not None:
+        if line is not None:
+            line.clear()
         print(
             f"{'level':>5} {'triangles':>10} {'max dX %':>9} {'steps':>6} {'ms':>8} {'|dV|/V0':>9}",
             file=out,
@@ -355,6 +366,8 @@ def run_solve(session: Session, out: TextIO | None = None) -> SolveResult:
 
     def row(p) -> None:
         if p.level_done and out is not None:
+            if line is not None:
+                line.clear()
             change = 100 * p.max_node_change if p.max_node_change is not None else 0.0
             print(
                 f"{p.level:>5} {p.triangles:>10} {change:>9.3f} {p.step:>6} "

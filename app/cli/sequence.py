@@ -12,7 +12,6 @@ import sys
 import time
 from pathlib import Path
 
-from ...core.api import Session
 from ...core.errors import IsochorError
 from ...core.export import export_sequence
 from ...core.io.atomic import check_outputs, write_outputs
@@ -22,6 +21,7 @@ from ...core.scenario.sequence import frame_path, solve_sequence
 from ...core.solve.generators import run_to_end
 from . import interrupts
 from .console import EXIT_NOT_CONVERGED, EXIT_OK, PipeSafe
+from .opening import open_session
 
 
 def run_sequence(args, scenario, inputs: list, source: str) -> int:
@@ -48,7 +48,7 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
     report = [(args.report, "--report")] if args.report is not None else []
     outputs = check_outputs(targets + report, inputs)
     t0 = time.perf_counter()
-    session = Session(scenario)  # loaded as for one solve; its problem holds the poses
+    session = open_session(scenario)  # loaded as for one solve; its problem holds the poses
     problem = session.problem
     for w in session.warnings:
         print(f"isochor: warning: {w}", file=sys.stderr)

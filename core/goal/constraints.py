@@ -30,12 +30,12 @@ from functools import cached_property
 
 import numpy as np
 
-from ..bodies import arrange
+from ..bodies import arrange, tetra_volumes
 from ..io.repair import body_labels, compact
 from ..lattice import Lattice, PointBasis
 from ..localbasis import LocalPointBasis
 from ..mesh import TriMesh
-from ..volume import MomentOperator, VolumeOperator, face_volumes
+from ..volume import MomentOperator, VolumeOperator
 from .spec import Goal
 
 #: the centroid is held to this fraction of the volume tolerance, in object sizes
@@ -53,7 +53,14 @@ class Bodies:
     volumes: np.ndarray  #: (bodies,) rest volume of each body (its shells' sum)
 
     @classmethod
-    def of(cls, mesh: TriMesh) -> Bodies:
+    def of(cls, mesh: TriMesh, count: int | None = None) -> Bodies:
+        """The bodies of ``mesh``; ``count``, when loading already counted them: one body
+        needs no labelling of faces, nor any containment test."""
+        if count == 1:
+            one = np.zeros(1, dtype=np.intp)
+            used = mesh.vertices if mesh.n_vertices else np.zeros((1, 3))
+            bodies = cls(one, used.mean(axis=0)[None], np.zeros(mesh.n_faces, np.intp), one)
+            return replace(bodies, volumes=bodies.measure(mesh.vertices, mesh.faces))
         labels, n = body_labels(mesh.faces)
         depth = arrange(mesh.vertices, mesh.faces, labels, n).inside
         solid = np.arange(n)
@@ -70,8 +77,10 @@ class Bodies:
         return replace(bodies, volumes=bodies.measure(mesh.vertices, mesh.faces))
 
     def measure(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-        """(bodies,) volume of each body of the full mesh with these vertex positions."""
-        vols = face_volumes(vertices, faces)
+        """(bodies,) volume of each body of the full mesh with these vertex positions
+        (:func:`isochor.core.bodies.tetra_volumes`: the numbers of
+        :func:`isochor.core.volume.face_volumes`, three times faster)."""
+        vols = tetra_volumes(vertices, faces)
         return np.bincount(
             self.solid_of_face, weights=vols, minlength=self.solid_of_shell.max() + 1
         )

@@ -22,8 +22,8 @@ import scipy.sparse as sp
 
 from .. import kernels
 from .. import localbasis as lb
-from ..bodies import winding_numbers
 from ..errors import IsochorError
+from ..inside import grid_winding
 from ..lattice import Lattice
 from ..mesh import TriMesh
 from ..springs import sparse_hessian
@@ -41,15 +41,18 @@ def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) 
 
     The grid spacing is first chosen from the volume of the mesh's bounding box so that
     about ``count`` grid points (cell centres) fall in the box; those with ``|winding number|
-    > 0.5`` are kept. A thin model (a flat torus) fills little of its box, so while fewer
-    than ``count / 2`` are inside, the grid is refined (twice at most). Winding numbers cost
-    points x triangles: the grid never exceeds ``budget`` of them. Deterministic.
+    > 0.5`` are kept (signed ray crossings per grid column,
+    :func:`isochor.core.inside.grid_winding`, whatever the mesh: several bodies, cavities,
+    capped openings). A thin model (a flat torus) fills little of its box, so while fewer
+    than ``count / 2`` are inside, the grid is refined (twice at most). The grid never has
+    more than ``budget / triangles`` points (the fold guard's cost grows with them).
+    Deterministic.
 
     Parameters
     ----------
     mesh : a closed triangle mesh
     count : about how many points inside to aim for
-    budget : most (point, triangle) pairs to spend on winding numbers
+    budget : most (point, triangle) pairs: the grid has at most ``budget // triangles`` points
 
     Returns
     -------
@@ -66,28 +69,29 @@ def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) 
     most = min(int(count), int(budget) // mesh.n_faces)
     if most < 1:
         return empty
-    triangles = mesh.vertices[mesh.faces]
     inside = empty
     for _ in range(3):  # a thin model fills little of its box: refine until about `count`
-        grid = _grid(lo, ext, (box / most) ** (1.0 / 3.0), mesh.n_faces, budget)
-        winding = winding_numbers(grid, triangles)
-        inside = np.ascontiguousarray(grid[np.abs(winding) > INSIDE])
+        cells = _cells(ext, (box / most) ** (1.0 / 3.0), mesh.n_faces, budget)
+        step = ext / cells
+        winding = grid_winding(mesh.vertices, mesh.faces, lo, step, cells)
+        axes = [lo[c] + (np.arange(cells[c]) + 0.5) * step[c] for c in range(3)]
+        where = np.nonzero(np.abs(winding) > INSIDE)
+        inside = np.stack([axes[c][where[c]] for c in range(3)], axis=1)
         room = int(budget) // mesh.n_faces
-        if len(inside) >= count / 2 or len(grid) >= room:
+        if len(inside) >= count / 2 or int(np.prod(cells)) >= room:
             break
         most = min(room, int(most * min(8.0, count / max(len(inside), 1))))
-    return inside
+    return np.ascontiguousarray(inside)
 
 
-def _grid(lo: np.ndarray, ext: np.ndarray, spacing: float, faces: int, budget: int) -> np.ndarray:
-    """Cell centres of a regular grid over the box, about ``spacing`` apart, within the
-    winding-number budget."""
+def _cells(ext: np.ndarray, spacing: float, faces: int, budget: int) -> np.ndarray:
+    """Cells per axis of a regular grid over the box, about ``spacing`` apart, with at most
+    ``budget // faces`` cells."""
     cells = np.maximum(1, np.rint(ext / spacing)).astype(np.int64)
     while int(np.prod(cells)) * faces > budget:  # rounding went over the budget
         spacing *= 1.05
         cells = np.maximum(1, np.rint(ext / spacing)).astype(np.int64)
-    axes = [lo[c] + (np.arange(cells[c]) + 0.5) * (ext[c] / cells[c]) for c in range(3)]
-    return np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
+    return cells
 
 
 def _bernstein_pair(degree: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

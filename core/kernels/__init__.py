@@ -31,7 +31,9 @@ Each returns None when the compiled kernels are not there (yet); the caller then
 NumPy code. They are there once numba (the ``fast`` extra) imports and has compiled them.
 Compiling never happens in the caller: :func:`start` (called by ``load_model`` and by the
 first evaluation of ``START_SIZE`` points or faces) loads them in a background thread from
-numba's on-disk cache (:mod:`core.kernels.base`), and NumPy serves until that is done. With an
+numba's on-disk cache (:mod:`core.kernels.base`), and NumPy serves until that is done. A
+one-shot command turns that off (:func:`set_autostart`) and asks :func:`worth`: numba only
+for a big model, waited for (``isochor solve``, :mod:`isochor.app.cli.opening`). With an
 empty cache a child interpreter compiles them first (:mod:`core.kernels.cache`). Whatever
 goes wrong (numba missing, an import or compile error, a failed self-check, a compiled call
 that raises) leaves the NumPy path in place; :func:`status` says why. A solve keeps the
@@ -67,13 +69,24 @@ CHUNK = 1 << 14
 _FACE_CHUNK = 1 << 15
 #: (point, triangle) pairs per range of winding-number work
 WINDING_PAIRS = 1 << 20
+#: a one-shot command (``isochor solve``) loads the kernels only for a model of at least
+#: this many triangles, and then waits for them before solving (:func:`worth`). Measured
+#: (the benchmark's First use rows, a loaded machine): the 346k armadillo's cold command
+#: took 8.7 s waiting for numba against 7.5 s on NumPy; at 1.38M the compiled release
+#: solve is about 4x faster than NumPy's and loading numba hides behind reading the file
+WORTH_TRIANGLES = 1_000_000
+#: ... and starts them before loading a model file of at least this many bytes (about
+#: ``WORTH_TRIANGLES`` triangles of binary PLY), so that they load while the file does
+WORTH_BYTES = 20 * WORTH_TRIANGLES
 
 #: threads per call (:mod:`core.kernels.threads`)
 set_threads = _jitthreads.set_threads
 
 _log = logging.getLogger(__name__)
 _lock = threading.Lock()
-_state = SimpleNamespace(status="idle", reason="", kernels=None, thread=None, mode="auto")
+_state = SimpleNamespace(
+    status="idle", reason="", kernels=None, thread=None, mode="auto", autostart=True
+)
 #: ``mode``: the path this thread's running solve keeps (see :func:`one_path`)
 _local = threading.local()
 
@@ -113,9 +126,28 @@ def numpy_path():
         set_mode(previous)
 
 
-def start() -> None:
-    """Start loading the kernels in a background thread, unless started or switched off."""
-    if _off_by_env() or _state.status != "idle":
+def set_autostart(on: bool) -> bool:
+    """Whether loading a model and large evaluations start loading the kernels by
+    themselves (the default: right for the window and the API, whose process lives on).
+    A one-shot command turns it off and decides with :func:`worth`. Returns the previous
+    setting."""
+    previous, _state.autostart = _state.autostart, bool(on)
+    return previous
+
+
+def worth(triangles: int) -> bool:
+    """Whether a one-shot solve of a model of ``triangles`` triangles should wait for the
+    kernels: below :data:`WORTH_TRIANGLES` the compiled solve saves less than loading
+    numba costs the command (about 0.5 s of CPU from a warm cache, and its threads on the
+    same cores), and loading it beside a NumPy solve only slows that down (the cold
+    command rows of the benchmark)."""
+    return triangles >= WORTH_TRIANGLES
+
+
+def start(auto: bool = False) -> None:
+    """Start loading the kernels in a background thread, unless started or switched off
+    (with ``auto``: only where :func:`set_autostart` allows it)."""
+    if _off_by_env() or _state.status != "idle" or (auto and not _state.autostart):
         return
     with _lock:
         if _state.status != "idle":
@@ -147,7 +179,7 @@ def _kernels(size: int = 0) -> SimpleNamespace | None:
     if k is not None:
         return k if (getattr(_local, "mode", None) or _state.mode) == "auto" else None
     if size >= START_SIZE and _state.status == "idle":
-        start()
+        start(auto=True)
     return None
 
 

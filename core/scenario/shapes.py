@@ -18,6 +18,7 @@ finely in each direction as the last, so levels have about 4 times more triangle
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import lru_cache
 from math import pi
 
 import numpy as np
@@ -42,21 +43,18 @@ def torus(nu: int, nv: int, major: float = 1.0, minor: float = 0.4) -> TriMesh:
     v = 2 * pi * (j + 0.5 * (i % 2)) / nv
     ring = major + minor * np.cos(v)
     verts = np.stack([ring * np.cos(u), ring * np.sin(u), minor * np.sin(v)], -1).reshape(-1, 3)
-    idx = lambda a, b: (a % nu) * nv + (b % nv)  # noqa: E731
-    faces = []
-    for a in range(nu):
-        for b in range(nv):
-            if a % 2 == 0:  # ring a+1 is shifted by +1/2 relative to ring a
-                faces += [
-                    (idx(a, b), idx(a + 1, b), idx(a, b + 1)),
-                    (idx(a, b + 1), idx(a + 1, b), idx(a + 1, b + 1)),
-                ]
-            else:  # ring a is shifted by +1/2 relative to ring a+1
-                faces += [
-                    (idx(a, b), idx(a + 1, b + 1), idx(a, b + 1)),
-                    (idx(a, b), idx(a + 1, b), idx(a + 1, b + 1)),
-                ]
-    return _outward(TriMesh(verts, np.array(faces)))
+    a, b = (x[:, :, None] for x in np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij"))
+    here, up = (a % nu) * nv + b % nv, (a % nu) * nv + (b + 1) % nv
+    nxt, nxt_up = ((a + 1) % nu) * nv + b % nv, ((a + 1) % nu) * nv + (b + 1) % nv
+    even = a % 2 == 0  # ring a+1 is shifted by +1/2 relative to ring a (odd: a to a+1)
+    first = np.where(
+        even, np.concatenate([here, nxt, up], 2), np.concatenate([here, nxt_up, up], 2)
+    )
+    second = np.where(
+        even, np.concatenate([up, nxt, nxt_up], 2), np.concatenate([here, nxt, nxt_up], 2)
+    )
+    faces = np.stack([first, second], axis=2).reshape(-1, 3)  # per (a, b): the two triangles
+    return _outward(TriMesh(verts, faces))
 
 
 def torus_levels(n_levels: int = 7, major: float = 1.0, minor: float = 0.4) -> list[TriMesh]:
@@ -225,6 +223,13 @@ BUILTINS: dict[str, tuple[Callable[..., list[TriMesh]], str]] = {
 }
 
 
+@lru_cache(maxsize=4)
+def _levels(name: str, params: tuple) -> tuple[TriMesh, ...]:
+    """The levels, made once per process and parameters (meshes are immutable): an
+    example's lattice and its session both ask for them."""
+    return tuple(BUILTINS[name][0](**dict(params)))
+
+
 def builtin_levels(name: str, **params) -> list[TriMesh]:
     """The level pyramid of a built-in shape by name, coarse to fine."""
     if name not in BUILTINS:
@@ -244,6 +249,6 @@ def builtin_levels(name: str, **params) -> list[TriMesh]:
             "model.minor: must be smaller than model.major (the torus would cut itself)"
         )
     try:
-        return BUILTINS[name][0](**params)
+        return list(_levels(name, tuple(sorted(params.items()))))
     except TypeError as exc:
         raise IsochorError(f"Bad parameters for the built-in shape {name!r}: {exc}") from None

@@ -4,6 +4,7 @@
   solve generator every consumer drives; ``live=True`` for a drag's frames
 - :mod:`.solver`       augmented Lagrangian with an L-BFGS inner loop (Eq 15-21, Fig 3)
 - :mod:`.lbfgs`        the inner loop: L-BFGS as a generator, preconditioned
+- :mod:`.linesearch`   its strong-Wolfe line search (SciPy's, without importing scipy.optimize)
 - :mod:`.precondition` the L-BFGS start: springs' Hessian + Gauss-Newton terms, inverted
 - :mod:`.surface`      EmbeddedSurface: the level pyramid in its lattice, per-level caches
 - :mod:`.pyramid`      the QEM level pyramid (fast-simplification), each level checked

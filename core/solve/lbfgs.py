@@ -1,24 +1,24 @@
 """Limited-memory BFGS as a generator: the inner minimisation of the augmented Lagrangian
 (:mod:`isochor.core.solve.solver`).
 
-Two-loop recursion with scipy's strong-Wolfe line search (:func:`scipy.optimize.line_search`)
-on the analytic gradient. It is written as a generator rather than a call to
-``scipy.optimize.minimize`` because the editor must see every iterate as it comes and must
-be able to stop the work at once, which a blocking call cannot offer. An approximate inverse
+Two-loop recursion with scipy's strong-Wolfe line search (:mod:`.linesearch`, SciPy's
+``scipy.optimize.line_search`` step for step) on the analytic gradient. It is written as a
+generator rather than a call to ``scipy.optimize.minimize`` because the editor must see every
+iterate as it comes and must be able to stop the work at once, which a blocking call cannot
+offer. An approximate inverse
 Hessian (:mod:`isochor.core.solve.precondition`) can replace the scaled identity the recursion
 starts from.
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Generator
 
 import numpy as np
-from scipy.optimize import line_search
 
 from ..kernels import step as stepkernels
 from ..kernels.pairs import Pairs
+from .linesearch import line_search
 
 #: a preconditioned L-BFGS run that has not converged after this many steps goes on with
 #: the plain scaled identity (keeping its correction pairs): the preconditioner is the
@@ -82,18 +82,16 @@ def lbfgs(
             if f_try <= f + 1e-4 * slope and abs(g_try @ d) <= 0.9 * abs(slope):
                 step = x_try, f_try, g_try, aux_try
         if step is None:
-            with warnings.catch_warnings():
-                warnings.filterwarnings("ignore", "The line search algorithm")
-                alpha, *_ = line_search(
-                    lambda z: evaluate(z)[0],
-                    lambda z: evaluate(z)[1],
-                    x,
-                    d,
-                    g,
-                    f,
-                    f_old,
-                    maxiter=30,
-                )
+            alpha = line_search(
+                lambda z: evaluate(z)[0],
+                lambda z: evaluate(z)[1],
+                x,
+                d,
+                g,
+                f,
+                f_old,
+                maxiter=30,
+            )
             if alpha is None:  # Wolfe search failed: backtrack on sufficient decrease only
                 alpha = 1.0
                 while alpha > 1e-12 and evaluate(x + alpha * d)[0] > f + 1e-4 * alpha * slope:

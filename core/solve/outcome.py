@@ -58,7 +58,7 @@ def outcome(
     c = cons.values(x)
     folds = surface.fold_check.measure(x)
     bodies: tuple[BodyVolume, ...] = ()
-    if goal.preserve == "per-body" or surface.bodies.count > 1:
+    if goal.preserve == "per-body" or surface.body_count > 1:
         rest = surface.bodies.volumes
         final = surface.bodies.measure(surface.deform(x), surface.full.faces)
         bodies = tuple(

@@ -33,6 +33,7 @@ scaled by 1000 is the same pyramid scaled by 1000.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 
 import numpy as np
 
@@ -62,6 +63,7 @@ def build_pyramid(
     ratio: float = 4.0,
     notes: list[str] | None = None,
     bodies: int | None = None,
+    progress: Callable[[float], None] | None = None,
 ) -> list[TriMesh]:
     """Levels coarse to fine for the multi-level solve; the last is ``mesh`` itself.
 
@@ -74,6 +76,8 @@ def build_pyramid(
     notes : when given, gets one line per rejected level (why), for benchmarks and tests
     bodies : the number of bodies when known (as the cleaning counted them); 1 saves
         looking for them again
+    progress : called with the share of the work done (0 to 1) after each level (about:
+        a level costs in proportion to the triangles it starts from)
     """
     lo, hi = mesh.bounds
     center, size = mesh.center, mesh.size
@@ -93,6 +97,8 @@ def build_pyramid(
             break
         levels.append(_join(coarser, center, size))
         current = coarser
+        if progress is not None:
+            progress(1.0 - levels[-1].n_faces / max(mesh.n_faces, 1))
     return levels[::-1]
 
 

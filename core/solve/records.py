@@ -37,6 +37,12 @@ class Progress:
     level_done: bool = False  #: True for the record that closes a level
     max_node_change: float | None = None  #: at a level's end: vs the previous level, / size
 
+    @property
+    def fraction(self) -> float:
+        """About how far the solve is, 0 to 1: the levels closed of all (a solve that
+        stops early on a coarser level ends at 1 all the same)."""
+        return min(1.0, (self.level + (1 if self.level_done else 0)) / max(self.n_levels, 1))
+
 
 @dataclass(frozen=True)
 class LevelStats:

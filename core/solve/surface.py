@@ -44,10 +44,13 @@ class EmbeddedSurface:
     ----------
     lattice : the FFD lattice; its rest nodes define X_org
     levels : coarse to fine versions of one closed surface; the last is full resolution
+    n_bodies : how many separate bodies the full mesh has, when loading counted them
+        (None: they are counted here when needed)
     """
 
     lattice: Lattice
     levels: Sequence[TriMesh]
+    n_bodies: int | None = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -83,7 +86,13 @@ class EmbeddedSurface:
     @cached_property
     def bodies(self) -> Bodies:
         """The full mesh's solid bodies (shells with their cavities)."""
-        return Bodies.of(self.full)
+        return Bodies.of(self.full, self.n_bodies)
+
+    @property
+    def body_count(self) -> int:
+        """How many bodies the full mesh has: as loading counted them, else from
+        :attr:`bodies` (which measures each one's volume)."""
+        return self.n_bodies if self.n_bodies is not None else self.bodies.count
 
     def constraints(self, k: int, goal: Goal, extra: HandleSystem | None = None) -> Constraints:
         """The goal's constraints on level ``k`` (and the handles', when given)."""
