@@ -185,6 +185,24 @@ class ModelView:
         self._show(full=False)
         self._upgrade = None if moving else self._steps(nodes)
 
+    def lower(self) -> None:
+        """Draw the proxy at the nodes drawn now, and the full mesh again through
+        :meth:`step` (at once when it is placed there already)."""
+        if self.proxy is None:
+            return
+        nodes = self.nodes
+        self.draw(nodes, moving=True)
+        self._upgrade = self._back(nodes)
+
+    def _back(self, nodes: np.ndarray) -> Iterator[None]:
+        if self._full_nodes is None or not np.array_equal(nodes, self._full_nodes):
+            yield from self._steps(nodes)
+            return
+        yield
+        if self.estimated:
+            self.volume, self.estimated = self.full.volume, False
+        self._show(full=True)
+
     @property
     def upgrading(self) -> bool:
         """The full mesh is being prepared (the proxy is on screen until it is)."""
