@@ -15,7 +15,12 @@ What it measures, each a median of the repeats:
   thread and the largest gap between two ticks is the longest time the GUI thread did not
   answer, from the press to the release solve's result (drawn or not);
 * the longest stall while the result is drawn at full resolution (after the solve ended),
-  reported on its own so that it is never hidden in the row before;
+  reported on its own so that it is never hidden in the row before: the most the next
+  press could wait, against one proxy frame (the drag's median time a redraw);
+* from the release to its result drawn at the proxy (the first frame after the release
+  solve's result was accepted);
+* the drags alternate with and without back-face culling of the (closed) model, so that
+  its gain is a ratio in one run;
 * closing the window while it solves: the armadillo opened in a new window each repeat, a
   node dragged (live solving off), and once the release's solve has handed over its first
   record, the time ``close()`` takes (it stops the solver, waiting at most half a second
