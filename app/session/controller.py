@@ -376,6 +376,8 @@ class EditorSession(QObject):
         summary = SolveSummary.of(result, len(cell.state.surface.levels))
         self.document.record_result(cell, result.nodes, summary)
         self._pending = (self.document.view_nodes(), None)
+        if not self._shut:  # the result is drawn at the next turn, not after the solver's share
+            self.frame_timer.start(0)
         self._owe_idle()
         self.solveDone.emit(gen, bool(result.converged))
 
