@@ -77,8 +77,6 @@ def run_opening(path: Path, repeats: int) -> list[Row]:
             "finalisation once the window has shut down",
         )
     )
-    for r in rows:
-        print(f"  {r.what}: {r.ms()} ms; {r.target}; {r.verdict()}")
     return rows
 
 

@@ -23,7 +23,7 @@ What it measures, each a median of the repeats:
   its gain is a ratio in one run;
 * closing the window while it solves: the armadillo opened in a new window each repeat, a
   node dragged (live solving off), and once the release's solve has handed over its first
-  record, the time ``close()`` takes (it stops the solver, waiting at most half a second
+  record, the time ``close()`` takes (it stops the solver, waiting at most 0.1 s
   for its thread, and releases VTK).
 
 The event loop is a real one (``QEventLoop.exec``) the whole time: nothing here sleeps on
@@ -166,7 +166,7 @@ def _close_row(closes: list[tuple[float, bool]]) -> Row:
     met = took.median <= CLOSE_TARGET and solving == len(closes)
     why = f"{solving} of {len(closes)} windows still solving as they closed"
     if took.median > CLOSE_TARGET:
-        why += "; the solver's thread is waited for at most 0.5 s, the rest is releasing VTK"
+        why += "; the solver's thread is waited for at most 0.1 s, the rest is releasing VTK"
     return Row(WHAT_CLOSE, took, f"<= {1e3 * CLOSE_TARGET:g} ms", met, why)
 
 

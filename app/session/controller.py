@@ -468,11 +468,11 @@ class EditorSession(QObject):
         self.flushed.emit()
 
     def shutdown(self) -> None:
-        """Stop the timers and the worker (waits at most half a second)."""
+        """Stop the timers and the worker (waits at most ``worker.SHUTDOWN_WAIT`` for it)."""
         self._shut = True
         self.frame_timer.stop()
         self._stop()
-        self.worker.shutdown(timeout=0.5)
+        self.worker.shutdown()
 
 
 def _prepare(document: Document) -> None:

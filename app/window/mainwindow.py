@@ -416,7 +416,7 @@ class MainWindow(QMainWindow):
         super().closeEvent(ev)
 
     def shutdown(self) -> None:
-        """Stop the session (waits at most half a second for the solver), release VTK.
+        """Stop the session (waits at most 0.1 s for the solver), release VTK.
         Safe to call more than once."""
         if self.closed:
             return
