@@ -66,3 +66,21 @@ def test_the_prepared_arrays_are_the_views_own(torus):
         k = prep.proxy_k
         assert surface.levels[k].n_faces <= meshprep.PROXY_TRIANGLES
         assert np.array_equal(prep.proxy.points, surface.deform(nodes, level=k))
+
+
+def test_an_open_models_caps_are_shaded_but_not_drawn_nor_culled(torus):
+    """A capped open model (its last ``cap_faces`` triangles are virtual caps): the volume
+    is the capped solid's, the triangles drawn (and picked) are the model's own, which are
+    open, so its back faces are drawn (the inside shows through the hole)."""
+    from types import SimpleNamespace
+
+    points, faces = torus
+    capped = SimpleNamespace(vertices=points, faces=faces, cap_faces=3)
+    whole = SimpleNamespace(vertices=points, faces=faces)
+    center = points.mean(axis=0)
+    prep = meshprep.MeshPrep.of(capped, points, center)
+    solid = meshprep.MeshPrep.of(whole, points, center)
+    assert prep.volume == pytest.approx(solid.volume, rel=1e-12)  # the caps' volume kept
+    assert np.array_equal(prep.faces, faces[:-3]) and not prep.closed and solid.closed
+    assert len(prep.cells) == 4 * (len(faces) - 3) and solid.cap_cells is None
+    assert np.array_equal(prep.cap_cells.reshape(-1, 4)[:, 1:], faces[-3:])

@@ -5,9 +5,11 @@ thread, :mod:`isochor.app.view.modelview`).
 - :func:`draw_order`: the triangles along a space-filling curve (software OpenGL draws them
   faster so);
 - :class:`Shading`: vertex normals and the enclosed volume of a deforming mesh;
-- :func:`proxy_level`: which pyramid level stands in for a big model while it moves;
+- :func:`proxy_level`: which pyramid level stands in for a big model while it moves, and
+  :func:`capped_last` its triangles that simplify an open model's caps set apart;
 - :func:`closed`: whether a mesh is closed and consistently wound (its back faces can never
-  be seen from outside: the view culls them);
+  be seen from outside: the view culls them; an open model's own triangles, drawn without
+  its virtual caps, are not closed);
 - :class:`DisplayPrep`: all of it for one model at given nodes, computed where waiting does
   not hurt (the loading thread, a lattice rebuild's thread) and handed to the view, which
   then only makes the VTK objects.
@@ -160,15 +162,44 @@ def closed(faces: np.ndarray) -> bool:
     )
 
 
+def capped_last(level, full):
+    """A coarse ``level`` of an open model with the triangles that simplify its caps put
+    last and counted as caps (so they are drawn only with the caps): those whose centre is
+    nearest a cap triangle of the ``full`` mesh. ``level`` itself for a closed model."""
+    if not getattr(full, "cap_faces", 0):
+        return level
+    from scipy.spatial import cKDTree
+
+    def centres(mesh):
+        return np.asarray(mesh.vertices)[np.asarray(mesh.faces)].mean(axis=1)
+
+    _, nearest = cKDTree(centres(full)).query(centres(level))
+    cap = nearest >= full.own_faces
+    faces = np.asarray(level.faces)
+    return type(level)(level.vertices, np.vstack([faces[~cap], faces[cap]]), 0, int(cap.sum()))
+
+
+def ghost_mesh(surface):
+    """The rest shape the ghost draws: the proxy's level when there is one (faint and
+    translucent, it looks the same at a fraction of the cost), else the model's own
+    triangles (never its caps)."""
+    k = proxy_level(surface.levels)
+    full = surface.full
+    return getattr(full, "own", full) if k is None else surface.levels[k]
+
+
 @dataclass(frozen=True)
 class MeshPrep:
-    """One drawn mesh of the model, computed: the points at the nodes, the VTK cell array
-    in draw order, the shading with the normals and the volume there, and whether the mesh
-    is closed."""
+    """One drawn mesh of the model, computed: the points at the nodes, the model's own
+    triangles (what is drawn and picked, never an open model's caps) and their VTK cell
+    array in draw order, the caps' cell array (None without caps), the shading of the whole
+    solid (the capped volume) with its normals and volume there, and whether the drawn
+    triangles are closed."""
 
     faces: np.ndarray
     points: np.ndarray
     cells: np.ndarray
+    cap_cells: np.ndarray | None
     shading: Shading
     normals: np.ndarray
     volume: float
@@ -177,11 +208,13 @@ class MeshPrep:
     @classmethod
     def of(cls, mesh, points: np.ndarray, center) -> MeshPrep:
         faces = np.asarray(mesh.faces)
+        own = faces[: len(faces) - getattr(mesh, "cap_faces", 0)]  # never the caps
         points = np.asarray(points, dtype=np.float64)
-        shading = Shading(faces, len(points), center)
+        shading = Shading(faces, len(points), center)  # (the capped solid's volume)
         normals, volume = shading(points)
-        ordered = cells(faces[draw_order(points, faces)])
-        return cls(faces, points, ordered, shading, normals, volume, closed(faces))
+        caps = cells(faces[len(own) :]) if len(own) < len(faces) else None
+        drawn = cells(own[draw_order(points, own)])
+        return cls(own, points, drawn, caps, shading, normals, volume, closed(own))
 
 
 @dataclass(frozen=True)
@@ -207,12 +240,12 @@ class DisplayPrep:
         k = proxy_level(surface.levels)
         proxy, scale = None, 1.0
         if k is not None:
-            mesh = surface.levels[k]
+            mesh = capped_last(surface.levels[k], surface.full)
             proxy = MeshPrep.of(mesh, surface.deform(nodes, level=k), center)
             rest = proxy.shading(mesh.vertices)[1]
             scale = surface.rest_volume / rest if rest else 1.0
-        ghost = surface.full if k is None else surface.levels[k]
-        return cls(surface, nodes, full, proxy, k, scale, cells(np.asarray(ghost.faces)))
+        ghost = cells(np.asarray(ghost_mesh(surface).faces))
+        return cls(surface, nodes, full, proxy, k, scale, ghost)
 
     def fits(self, surface, nodes) -> bool:
         """It was computed for ``surface`` at ``nodes``."""

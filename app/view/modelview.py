@@ -28,14 +28,16 @@ import numpy as np
 import pyvista as pv
 
 from . import style
-from .meshprep import (  # noqa: F401 (draw_order, cells: the view's names for them too)
+from .meshprep import (  # noqa: F401 (draw_order, cells, capped_last: the view's names too)
     AT_ONCE_FACES,
     PROXY_TRIANGLES,
     DisplayPrep,
     MeshPrep,
     Shading,
+    capped_last,
     cells,
     draw_order,
+    ghost_mesh,
     proxy_level,
 )
 
@@ -57,6 +59,7 @@ class MeshView:
         self.closed = prep.closed  #: closed and consistently wound: back faces can be culled
         points = prep.points
         self.poly = pv.PolyData(np.array(points), prep.cells)
+        self.caps = None if prep.cap_cells is None else Caps(plotter, points, prep.cap_cells, name)
         self.poly.point_data["colors"] = np.tile(rgb(style.MODEL), (len(points), 1))
         self.volume = prep.volume
         self.actor = plotter.add_mesh(
@@ -85,6 +88,8 @@ class MeshView:
             self.poly.point_data["Normals"][:] = normals
         self.volume = volume
         self.poly.Modified()
+        if self.caps is not None:
+            self.caps.place(points)
 
     def draw_at(self, points: np.ndarray, smooth: bool) -> None:
         normals, volume = self.shading(points)
@@ -109,6 +114,37 @@ class MeshView:
         poly.Modified()
 
 
+class Caps:
+    """The caps over an open model's holes (:mod:`isochor.core.io.caps`), drawn on demand:
+    translucent, so that the artist sees which volume is kept. Hidden by default; placed
+    with the full mesh only while shown."""
+
+    def __init__(self, plotter, points: np.ndarray, cap_cells: np.ndarray, name: str) -> None:
+        self.poly = pv.PolyData(np.array(points), cap_cells)
+        self.actor = plotter.add_mesh(
+            self.poly,
+            color=style.CAPS,
+            opacity=0.55,
+            show_scalar_bar=False,
+            render=False,
+            pickable=False,
+            name=f"{name} caps",
+        )
+        self.actor.SetVisibility(False)
+        self.wanted = False
+
+    def place(self, points: np.ndarray) -> None:
+        if self.actor.GetVisibility():
+            self.poly.points[:] = points
+            self.poly.Modified()
+
+    def show(self, on: bool, points: np.ndarray) -> None:
+        if on and not self.actor.GetVisibility():
+            self.poly.points[:] = points
+            self.poly.Modified()
+        self.actor.SetVisibility(bool(on))
+
+
 class ModelView:
     """The model's actors ("model", the full mesh, and "proxy" when the model is big) and
     which of them is drawn."""
@@ -124,6 +160,7 @@ class ModelView:
         self.volume = 0.0  #: signed volume of the model at the nodes drawn
         self.estimated = False  #: :attr:`volume` is the proxy's estimate
         self.folded = 0  #: how many vertices are marked folded
+        self.caps_wanted = False  #: draw the caps over an open model's holes
         self._surface = None
         self._full_nodes: np.ndarray | None = None  # the nodes the full mesh is placed at
         self._upgrade: Iterator[None] | None = None
@@ -144,6 +181,7 @@ class ModelView:
         self._full_nodes = self.nodes.copy()
         self.folded = 0
         self.volume, self.estimated = self.full.volume, False
+        self.show_caps(self.caps_wanted)
         self.proxy_k = prep.proxy_k
         self.proxy = None
         if prep.proxy is not None:
@@ -159,10 +197,8 @@ class ModelView:
                 mesh.set_culling(self.cull)
 
     def ghost_mesh(self, surface):
-        """The rest shape the ghost draws: the proxy's level when there is one (faint and
-        translucent, it looks the same at a fraction of the cost)."""
-        k = proxy_level(surface.levels)
-        return surface.full if k is None else surface.levels[k]
+        """The rest shape the ghost draws (:func:`~isochor.app.view.meshprep.ghost_mesh`)."""
+        return ghost_mesh(surface)
 
     # -- frames ------------------------------------------------------------------------------
     def draw(self, nodes: np.ndarray, moving: bool) -> None:
@@ -247,6 +283,17 @@ class ModelView:
         self.full.actor.SetVisibility(full)
         if self.proxy is not None:
             self.proxy.actor.SetVisibility(not full)
+        if self.full.caps is not None:  # (on the full mesh only: the proxy has no caps apart)
+            self.full.caps.show(full and self.caps_wanted, np.asarray(self.full.poly.points))
+
+    def show_caps(self, on: bool) -> None:
+        """Draw the caps over the model's holes (when it has any) or not."""
+        self.caps_wanted = bool(on)
+        self._show(bool(self.full.actor.GetVisibility()))
+
+    @property
+    def has_caps(self) -> bool:
+        return self.full is not None and self.full.caps is not None
 
     def know_volume(self, nodes: np.ndarray, volume: float) -> None:
         """The full mesh's volume at ``nodes`` is ``volume`` (measured by a solve): say it

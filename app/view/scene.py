@@ -223,6 +223,10 @@ class Scene:
     def set_smooth(self, on: bool) -> None:
         self.model.set_smooth(on)
 
+    def set_caps(self, on: bool) -> None:
+        """Show the caps over an open model's holes (the volume kept is inside them)."""
+        self.model.show_caps(on)
+
     def set_lattice_visible(self, on: bool, diagonals: bool | None = None) -> None:
         self.show_lattice = bool(on)
         if diagonals is not None:
