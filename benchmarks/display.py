@@ -18,7 +18,9 @@ Rows (measurements in :mod:`benchmarks.drag_cases`, the window's in :mod:`benchm
 * one volume + gradient evaluation on about a million triangles with 27 and 125 nodes;
 * a dense 8x8x8 lattice on the 346k armadillo, bottom layer pinned, a top corner dragged
   (one solve), and a drag's frames on it;
-* the window: redraws per second while dragging the 346k armadillo, the longest stall.
+* the window: redraws per second while dragging the 346k armadillo, the longest stalls,
+  the release's result at the proxy, and opening, rebuilding and quitting on it
+  (:mod:`benchmarks.opening`).
 """
 
 from __future__ import annotations

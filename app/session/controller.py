@@ -376,6 +376,8 @@ class EditorSession(QObject):
         summary = SolveSummary.of(result, len(cell.state.surface.levels))
         self.document.record_result(cell, result.nodes, summary)
         self._pending = (self.document.view_nodes(), None)
+        if not self._shut:  # the result is drawn at the next turn, not after the solver's share
+            self.frame_timer.start(0)
         self._owe_idle()
         self.solveDone.emit(gen, bool(result.converged))
 
@@ -466,11 +468,11 @@ class EditorSession(QObject):
         self.flushed.emit()
 
     def shutdown(self) -> None:
-        """Stop the timers and the worker (waits at most half a second)."""
+        """Stop the timers and the worker (waits at most ``worker.SHUTDOWN_WAIT`` for it)."""
         self._shut = True
         self.frame_timer.stop()
         self._stop()
-        self.worker.shutdown(timeout=0.5)
+        self.worker.shutdown()
 
 
 def _prepare(document: Document) -> None:

@@ -138,4 +138,4 @@ class FrameSolver(QObject):
 
     def shutdown(self) -> None:
         self.stop()
-        self.worker.shutdown(timeout=0.5)
+        self.worker.shutdown()  # (never waits for a long solve's end)

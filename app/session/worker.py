@@ -40,6 +40,13 @@ from ...core.scenario.problem import Problem
 HOLD_LIMIT = 0.25
 
 
+#: closing a window waits this long for its stopped solver threads, seconds: a step ends at
+#: once, a long one (a big model's first solve sets up its levels: seconds under load) is
+#: not waited for; it ends on its own, emitting nothing (it was 0.5 s, twice: the timeline's
+#: solver too, a quit's longest freeze)
+SHUTDOWN_WAIT = 0.1
+
+
 class SolveJob:
     """One solve: the generator ``make()`` makes, iterated by :meth:`run` on a thread of its
     own (``thread``), its records emitted by the ``worker``'s signals with ``generation``.
@@ -216,7 +223,7 @@ class SolveWorker(QObject):
             self._stopped.append(job)
         self._stopped = [j for j in self._stopped if j.thread.is_alive()]
 
-    def shutdown(self, timeout: float = 0.5) -> bool:
+    def shutdown(self, timeout: float = SHUTDOWN_WAIT) -> bool:
         """Stop everything and wait up to ``timeout`` seconds in total for the threads.
 
         Returns True when every thread ended. A thread still inside a long step ends on

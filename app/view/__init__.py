@@ -7,7 +7,9 @@
 - :mod:`.transformtool` TransformTool: the G/R/S gestures on the selection
 - :mod:`.handletool`    HandleTool: placing, selecting and dragging surface handles
 - :mod:`.modeldraw`     ModelFrames: a proxy while the model moves, the full mesh when it stops
-- :mod:`.modelview`     the model as drawn: full mesh or proxy level, shading, draw order
+- :mod:`.modelview`     the model as drawn: full mesh or proxy level, their actors
+- :mod:`.meshprep`      what drawing a model needs, numpy only (draw order, shading, closed
+  or not): computed off the GUI thread when a model opens or its lattice is rebuilt
 - :mod:`.scene`         the actors: the model, its ghost, the lattice, the selection
 - :mod:`.overlays`      drawn over the scene: the translate gizmo, handle markers
 - :mod:`.glyphs`        node shapes by role, sizes by lattice density

@@ -26,162 +26,42 @@ from collections.abc import Iterator
 
 import numpy as np
 import pyvista as pv
-import scipy.sparse as sp
 
 from . import style
-
-#: a model with more triangles is drawn as a proxy while it moves: the finest pyramid
-#: level with at most this many (the armadillo's 21.6k level: a 27 ms render, see above)
-PROXY_TRIANGLES = 50_000
-#: triangles shaded per step when the full mesh is drawn again (about 5-10 ms a step)
-STEP_FACES = 1 << 16
-#: a full mesh of up to this many triangles is drawn again at once (in one frame)
-AT_ONCE_FACES = 2 * STEP_FACES
+from .meshprep import (  # noqa: F401 (draw_order, cells, capped_last: the view's names too)
+    AT_ONCE_FACES,
+    PROXY_TRIANGLES,
+    DisplayPrep,
+    MeshPrep,
+    Shading,
+    capped_last,
+    cells,
+    draw_order,
+    ghost_mesh,
+    proxy_level,
+)
 
 #: how the model is lit (the same for the full mesh and the proxy)
 LOOK = {"specular": 0.25, "specular_power": 20, "diffuse": 0.85, "ambient": 0.12}
-
-
-def cells(faces: np.ndarray) -> np.ndarray:
-    """VTK cell array of equal-sized cells: ``[k, i0, .., ik-1, k, ...]``."""
-    faces = np.asarray(faces, dtype=np.int64)
-    return np.hstack([np.full((len(faces), 1), faces.shape[1], dtype=np.int64), faces]).ravel()
-
-
-def draw_order(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """The triangles in the order they are drawn: along a Morton (Z-order) curve through
-    their first corners, so that triangles near in space come near in the draw order.
-    Software OpenGL (llvmpipe) bins and shades them faster that way, its tiles and caches
-    meeting one region at a time. Off screen, the 346k armadillo's full render: in its
-    file's order 93 ms, shuffled 126 ms, shuffled and then put in this order 90 ms. A
-    file's order is often local already (the armadillo's, a subdivision's); this order
-    keeps every file there. The picture is the same; picking and shading keep the mesh's
-    own order (:attr:`MeshView.faces`). About 25 ms for 346k triangles (the first corner
-    instead of the centroid: the same grid cell but for one in a few, at a seventh of the
-    cost)."""
-    faces = np.asarray(faces, dtype=np.int64)
-    if len(faces) < 2:
-        return np.arange(len(faces))
-    corners = np.asarray(points, dtype=np.float64)[faces[:, 0]]
-    lo, hi = corners.min(axis=0), corners.max(axis=0)
-    cells = (corners - lo) / np.where(hi > lo, hi - lo, 1.0) * (MORTON_CELLS - 1)
-    code = np.zeros(len(faces), dtype=np.uint64)
-    for axis in range(3):
-        code |= _spread(cells[:, axis].astype(np.uint64)) << np.uint64(axis)
-    return np.argsort(code)
-
-
-#: cells per axis of the draw order's grid (10 bits: a 30-bit Morton code)
-MORTON_CELLS = 1 << 10
-
-
-def _spread(x: np.ndarray) -> np.ndarray:
-    """The low 10 bits of ``x`` spread to every third bit (Morton interleaving)."""
-    x = x & np.uint64(0x3FF)
-    for shift, mask in ((16, 0x30000FF), (8, 0x300F00F), (4, 0x30C30C3), (2, 0x9249249)):
-        x = (x | (x << np.uint64(shift))) & np.uint64(mask)
-    return x
 
 
 def rgb(color: str) -> np.ndarray:
     return np.array(style.hex_to_rgb(color), dtype=np.uint8)
 
 
-def proxy_level(levels, limit: int = PROXY_TRIANGLES) -> int | None:
-    """The level drawn while a model of these ``levels`` (coarse to fine) moves: the finest
-    coarser than the full mesh with at most ``limit`` triangles; None when the full mesh
-    has no more than ``limit`` (it is drawn itself) or no level fits."""
-    if levels[-1].n_faces <= limit:
-        return None
-    fits = [k for k, m in enumerate(levels[:-1]) if m.n_faces <= limit]
-    return fits[-1] if fits else None
-
-
-def capped_last(level, full):
-    """A coarse ``level`` of an open model with the triangles that simplify its caps put
-    last and counted as caps (so they are drawn only with the caps): those whose centre is
-    nearest a cap triangle of the ``full`` mesh. ``level`` itself for a closed model."""
-    if not full.cap_faces:
-        return level
-    from scipy.spatial import cKDTree
-
-    def centres(mesh):
-        return np.asarray(mesh.vertices)[np.asarray(mesh.faces)].mean(axis=1)
-
-    _, nearest = cKDTree(centres(full)).query(centres(level))
-    cap = nearest >= full.own_faces
-    faces = np.asarray(level.faces)
-    return type(level)(level.vertices, np.vstack([faces[~cap], faces[cap]]), 0, int(cap.sum()))
-
-
-class Shading:
-    """Vertex normals and the enclosed volume of a deforming mesh with a fixed face list.
-
-    The face normals (cross products of two edges) are gathered to the vertices by sparse
-    incidence matrices built once, one per block of :data:`STEP_FACES` faces, and the
-    volume is the sum of ``(a - c) . ((b - a) x (c' - a)) / 6`` over the faces (``c`` a
-    centre near the mesh): the same cross products.
-    """
-
-    def __init__(self, faces: np.ndarray, n_vertices: int, center) -> None:
-        self.faces = np.ascontiguousarray(faces, dtype=np.int64)
-        self.n_vertices = int(n_vertices)
-        self.center = np.asarray(center, dtype=np.float64)
-        self.blocks: list[tuple[int, int, sp.csr_matrix]] = []
-        f = len(self.faces)
-        for s in range(0, f, STEP_FACES):
-            t = min(s + STEP_FACES, f)
-            rows = self.faces[s:t].ravel()
-            cols = np.repeat(np.arange(t - s), 3)
-            gather = sp.csr_matrix(
-                (np.ones(3 * (t - s)), (rows, cols)), shape=(self.n_vertices, t - s)
-            )
-            self.blocks.append((s, t, gather))
-
-    def steps(self, points: np.ndarray) -> Iterator[None]:
-        """Compute in steps (one per block of faces); yields between them, returns
-        ``(normals (m, 3), volume)``."""
-        points = np.asarray(points, dtype=np.float64)
-        vn = np.zeros((self.n_vertices, 3))
-        volume = 0.0
-        for s, t, gather in self.blocks:
-            f = self.faces[s:t]
-            a = points[f[:, 0]]
-            n = np.cross(points[f[:, 1]] - a, points[f[:, 2]] - a)
-            a -= self.center
-            volume += float(np.einsum("ij,ij->", a, n)) / 6.0
-            vn += gather @ n
-            if t < len(self.faces):
-                yield
-        norm = np.sqrt(np.einsum("ij,ij->i", vn, vn))[:, None]
-        norm[norm == 0] = 1.0
-        return vn / norm, volume
-
-    def __call__(self, points: np.ndarray) -> tuple[np.ndarray, float]:
-        """``(normals (m, 3), volume)`` at once."""
-        run = self.steps(points)
-        while True:
-            try:
-                next(run)
-            except StopIteration as done:
-                return done.value
-
-
 class MeshView:
     """One drawn mesh of the model: its polydata, actor and shading."""
 
-    def __init__(self, plotter, mesh, points: np.ndarray, center, name: str, smooth: bool):
-        faces = np.asarray(mesh.faces)
-        own = faces[: len(faces) - getattr(mesh, "cap_faces", 0)]  # never the caps
-        self.faces = own  # (what is drawn and picked: the model's own triangles)
-        self.n_faces = len(own)
-        self.shading = Shading(faces, len(points), center)  # (the capped solid's volume)
-        self.poly = pv.PolyData(np.array(points), cells(own[draw_order(points, own)]))
-        self.caps = (
-            Caps(plotter, points, faces[len(own) :], name) if len(own) < len(faces) else None
-        )
+    def __init__(self, plotter, prep: MeshPrep, name: str, smooth: bool, cull: bool = True):
+        self.faces = prep.faces
+        self.n_faces = len(prep.faces)
+        self.shading = prep.shading
+        self.closed = prep.closed  #: closed and consistently wound: back faces can be culled
+        points = prep.points
+        self.poly = pv.PolyData(np.array(points), prep.cells)
+        self.caps = None if prep.cap_cells is None else Caps(plotter, points, prep.cap_cells, name)
         self.poly.point_data["colors"] = np.tile(rgb(style.MODEL), (len(points), 1))
-        normals, self.volume = self.shading(points)
+        self.volume = prep.volume
         self.actor = plotter.add_mesh(
             self.poly,
             scalars="colors",
@@ -192,7 +72,15 @@ class MeshView:
             name=name,
             **LOOK,
         )
-        self._smooth(smooth, normals)
+        self.set_culling(cull)
+        self._smooth(smooth, prep.normals)
+
+    def set_culling(self, on: bool) -> None:
+        """Cull back faces (on) when the mesh is closed: software OpenGL then shades about
+        half the triangles (the 346k armadillo's full render 1.7x faster, its proxy's
+        1.2-1.4x, see docs/BENCHMARKS.md); an open mesh shows its inside and is never
+        culled."""
+        self.actor.GetProperty().SetBackfaceCulling(bool(on and self.closed))
 
     def place(self, points: np.ndarray, normals: np.ndarray | None, volume: float) -> None:
         self.poly.points[:] = points
@@ -231,8 +119,8 @@ class Caps:
     translucent, so that the artist sees which volume is kept. Hidden by default; placed
     with the full mesh only while shown."""
 
-    def __init__(self, plotter, points: np.ndarray, faces: np.ndarray, name: str) -> None:
-        self.poly = pv.PolyData(np.array(points), cells(faces))
+    def __init__(self, plotter, points: np.ndarray, cap_cells: np.ndarray, name: str) -> None:
+        self.poly = pv.PolyData(np.array(points), cap_cells)
         self.actor = plotter.add_mesh(
             self.poly,
             color=style.CAPS,
@@ -268,6 +156,7 @@ class ModelView:
         self.proxy_k: int | None = None  #: the proxy's pyramid level
         self.nodes = np.zeros((0, 3))
         self.smooth = True
+        self.cull = True  #: closed meshes are drawn without their back faces
         self.volume = 0.0  #: signed volume of the model at the nodes drawn
         self.estimated = False  #: :attr:`volume` is the proxy's estimate
         self.folded = 0  #: how many vertices are marked folded
@@ -279,34 +168,37 @@ class ModelView:
         self._scale = 1.0  # full rest volume / proxy rest volume
 
     # -- building ----------------------------------------------------------------------------
-    def build(self, surface, nodes: np.ndarray, smooth: bool) -> None:
-        """Add the actors for ``surface`` at ``nodes`` (the plotter was cleared)."""
+    def build(self, surface, nodes: np.ndarray, smooth: bool, prep: DisplayPrep | None = None):
+        """Add the actors for ``surface`` at ``nodes`` (the plotter was cleared), from
+        ``prep`` when it was computed for them (off the GUI thread), else computed here."""
         self._surface = surface
         self.smooth = bool(smooth)
         self.nodes = np.array(nodes, dtype=np.float64)
         self._upgrade, self._points = None, None
-        center = surface.center
-        points = surface.deform(self.nodes)
-        self.full = MeshView(self.plotter, surface.full, points, center, "model", self.smooth)
+        if prep is None or not prep.fits(surface, self.nodes):
+            prep = DisplayPrep.of(surface, self.nodes)
+        self.full = MeshView(self.plotter, prep.full, "model", self.smooth, self.cull)
         self._full_nodes = self.nodes.copy()
         self.folded = 0
         self.volume, self.estimated = self.full.volume, False
         self.show_caps(self.caps_wanted)
-        self.proxy_k = proxy_level(surface.levels)
+        self.proxy_k = prep.proxy_k
         self.proxy = None
-        if self.proxy_k is not None:
-            mesh = capped_last(surface.levels[self.proxy_k], surface.full)
-            points = surface.deform(self.nodes, level=self.proxy_k)
-            self.proxy = MeshView(self.plotter, mesh, points, center, "proxy", self.smooth)
-            rest = self.proxy.shading(mesh.vertices)[1]
-            self._scale = surface.rest_volume / rest if rest else 1.0
+        if prep.proxy is not None:
+            self.proxy = MeshView(self.plotter, prep.proxy, "proxy", self.smooth, self.cull)
+            self._scale = prep.scale
             self.proxy.actor.SetVisibility(False)
 
+    def set_culling(self, on: bool) -> None:
+        """Cull the back faces of the closed meshes (on, the default) or draw them."""
+        self.cull = bool(on)
+        for mesh in (self.full, self.proxy):
+            if mesh is not None:
+                mesh.set_culling(self.cull)
+
     def ghost_mesh(self, surface):
-        """The rest shape the ghost draws: the proxy's level when there is one (faint and
-        translucent, it looks the same at a fraction of the cost)."""
-        k = proxy_level(surface.levels)
-        return surface.full.own if k is None else surface.levels[k]
+        """The rest shape the ghost draws (:func:`~isochor.app.view.meshprep.ghost_mesh`)."""
+        return ghost_mesh(surface)
 
     # -- frames ------------------------------------------------------------------------------
     def draw(self, nodes: np.ndarray, moving: bool) -> None:
@@ -328,6 +220,24 @@ class ModelView:
         self.volume, self.estimated = self.proxy.volume * self._scale, True
         self._show(full=False)
         self._upgrade = None if moving else self._steps(nodes)
+
+    def lower(self) -> None:
+        """Draw the proxy at the nodes drawn now, and the full mesh again through
+        :meth:`step` (at once when it is placed there already)."""
+        if self.proxy is None:
+            return
+        nodes = self.nodes
+        self.draw(nodes, moving=True)
+        self._upgrade = self._back(nodes)
+
+    def _back(self, nodes: np.ndarray) -> Iterator[None]:
+        if self._full_nodes is None or not np.array_equal(nodes, self._full_nodes):
+            yield from self._steps(nodes)
+            return
+        yield
+        if self.estimated:
+            self.volume, self.estimated = self.full.volume, False
+        self._show(full=True)
 
     @property
     def upgrading(self) -> bool:

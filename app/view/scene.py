@@ -13,6 +13,7 @@ import pyvista as pv
 
 from . import style
 from .glyphs import glyph_size, halo_actor, node_actor, role_shapes
+from .meshprep import DisplayPrep
 from .modelview import ModelView
 from .modelview import cells as _cells
 from .modelview import rgb as _rgb
@@ -30,6 +31,7 @@ class Scene:
         self.model = ModelView(plotter)  #: the model: the full mesh, or its proxy
         self.show_lattice = True
         self.show_diagonals = True
+        self._offered: DisplayPrep | None = None  # computed off the GUI thread for a build
 
     @property
     def built(self) -> bool:
@@ -66,6 +68,12 @@ class Scene:
         """(2, 3) lowest and highest corner of the model at the nodes drawn."""
         return self.model.bounds()
 
+    def offer(self, prep: DisplayPrep | None) -> None:
+        """What the next :meth:`build` may draw the model from, when it was computed for
+        its surface and nodes (:class:`~isochor.app.view.meshprep.DisplayPrep`, made off the
+        GUI thread); otherwise the build computes it itself."""
+        self._offered = prep
+
     def build(self, surface, nodes: np.ndarray, pin_axes, moved, held=None) -> None:
         """Replace every actor for a new model or lattice (not called per frame)."""
         p = self.plotter
@@ -76,8 +84,11 @@ class Scene:
         self.nodes = np.array(nodes, dtype=np.float64)
         self.selection = np.zeros(0, dtype=int)
 
+        prep, self._offered = self._offered, None
+        if prep is None or not prep.fits(surface, self.nodes):
+            prep = DisplayPrep.of(surface, self.nodes)
         rest = self.model.ghost_mesh(surface)
-        ghost = pv.PolyData(np.array(rest.vertices), _cells(np.asarray(rest.faces)))
+        ghost = pv.PolyData(np.array(rest.vertices), prep.ghost_cells)
         self.actors["ghost"] = p.add_mesh(
             ghost,
             color=style.GHOST,
@@ -89,7 +100,7 @@ class Scene:
         )
         self.actors["ghost"].SetVisibility(False)
 
-        self.model.build(surface, self.nodes, self.model.smooth)
+        self.model.build(surface, self.nodes, self.model.smooth, prep)
         self.actors["model"] = self.model.full.actor
         if self.model.proxy is not None:
             self.actors["proxy"] = self.model.proxy.actor

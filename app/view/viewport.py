@@ -346,9 +346,14 @@ class Viewport(QtInteractor):
             return True
         return super().event(ev)
 
+    def wheelEvent(self, ev) -> None:
+        self.model_frames.lower()  # the zoom's renders are a proxy's
+        super().wheelEvent(ev)
+
     def mousePressEvent(self, ev) -> None:
         pos = ev.position()
         self._mouse = QPointF(pos)
+        self.model_frames.touched()
         shift = bool(ev.modifiers() & Qt.KeyboardModifier.ShiftModifier)
         self.setFocus(Qt.FocusReason.MouseFocusReason)
         if self.transform_tool.running:  # a click confirms or cancels the gesture
@@ -393,11 +398,14 @@ class Viewport(QtInteractor):
             self._press = ContextPress(pos)
         else:
             self._press = CameraPress(pos)
+        if isinstance(self._press, CameraPress):
+            self.model_frames.lower()  # the camera's renders are a proxy's
         super().mousePressEvent(ev)
 
     def mouseMoveEvent(self, ev) -> None:
         pos = ev.position()
         self._mouse = QPointF(pos)
+        self.model_frames.touched()
         press = self._press
         if self.transform_tool.running:
             self.transform_tool.mouse(pos)

@@ -5,6 +5,7 @@
 - :mod:`.actions`       ActionSet: every action by name, the menus and the toolbar
 - :mod:`.files`         FileCommands: open, save, export, the unsaved-changes prompt
 - :mod:`.loading`       big models opened in the background, with progress and Cancel
+- :mod:`.rebuild`       LatticeRebuild: a big model's lattice rebuilt on a thread
 - :mod:`.framedraw`     FrameDrawer: the window's frames, what the session hands out, drawn
 - :mod:`.tools`         NodeTools: G/R/S wired to the session, the selection helpers
 - :mod:`.handletools`   HandleTools: handle gestures and symmetry wired to the session

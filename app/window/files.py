@@ -118,9 +118,10 @@ class FileCommands:
         """A file is being opened in the background."""
         return self._loader is not None and self._loader.busy()
 
-    def _loaded(self, doc: Document, mark) -> None:
-        """A background load is done: show ``doc``, unless the window has closed meanwhile
-        or the user edited the current document and now keeps it."""
+    def _loaded(self, doc: Document, mark, prep=None) -> None:
+        """A background load is done: show ``doc`` (drawn from ``prep``, the view's arrays
+        computed with it), unless the window has closed meanwhile or the user edited the
+        current document and now keeps it."""
         if self.win.closed:
             return
         doc_then, cell_then, saved_then = mark
@@ -129,6 +130,7 @@ class FileCommands:
         if not kept and not self.confirm_discard():  # edited (or saved) meanwhile: ask again
             self.win.statusBar().showMessage(f"{doc.title} was not opened.", 6000)
             return
+        self.win.viewport.scene.offer(prep)
         self.win.session.load(doc)
 
     def _mark(self) -> tuple:

@@ -8,7 +8,8 @@ plot. It is composed of parts it holds as fields: the status bar, the notes and 
 the view (``readout``, :mod:`isochor.app.window.readout`); the actions, menus and toolbar
 (``action_set``, :mod:`isochor.app.window.actions`); the file commands (``files``,
 :mod:`isochor.app.window.files`); the frames, a big model's proxy while it moves
-(``frames``, :mod:`isochor.app.window.framedraw`); the node tools, the handles and the
+(``frames``, :mod:`isochor.app.window.framedraw`); a big model's lattice rebuilt on a thread
+(``lattice_rebuild``, :mod:`isochor.app.window.rebuild`); the node tools, the handles and the
 timeline (``node_tools``, ``handle_tools``, ``timeline``: :mod:`isochor.app.window.tools`,
 :mod:`isochor.app.window.handletools`, :mod:`isochor.app.window.timelinetools`).
 """
@@ -24,7 +25,7 @@ from PySide6.QtWidgets import QDockWidget, QMainWindow, QMenu, QMessageBox, QScr
 from ... import assets
 from ...core.errors import IsochorError
 from ...core.io.caps import summary
-from ..editor import goalrules, latticerules, noderules
+from ..editor import goalrules, noderules
 from ..editor.document import Document, plural
 from ..session.controller import EditorSession
 from ..view.viewport import Viewport
@@ -35,6 +36,7 @@ from .handletools import HandleTools
 from .panel import Panel, bind
 from .plot import ConvergencePlot
 from .readout import Readout
+from .rebuild import LatticeRebuild
 from .timelinetools import TimelineTool
 from .tools import CONTROLS_HTML, NodeTools
 
@@ -80,6 +82,7 @@ class MainWindow(QMainWindow):
         self.node_tools = NodeTools(self)
         self.handle_tools = HandleTools(self)
         self.timeline = TimelineTool(self)
+        self.lattice_rebuild = LatticeRebuild(self)
         self._build_docks()
         self.action_set = ActionSet(self)
         self.action_set.build_menus(
@@ -332,8 +335,10 @@ class MainWindow(QMainWindow):
             self.error("Cannot set the target volume", str(exc))
 
     def rebuild_lattice(self, shape) -> None:
+        """A new lattice of ``shape`` nodes (one undo step; a big model's is computed on a
+        thread and committed when ready: :mod:`isochor.app.window.rebuild`)."""
         try:
-            self.commit_edit(latticerules.edit_lattice(self.doc.base(), shape))
+            self.lattice_rebuild.start(shape)
         except IsochorError as exc:
             self.error("Cannot rebuild the lattice", str(exc))
 
@@ -416,7 +421,7 @@ class MainWindow(QMainWindow):
         super().closeEvent(ev)
 
     def shutdown(self) -> None:
-        """Stop the session (waits at most half a second for the solver), release VTK.
+        """Stop the session (waits at most 0.1 s for the solver), release VTK.
         Safe to call more than once."""
         if self.closed:
             return
@@ -424,5 +429,6 @@ class MainWindow(QMainWindow):
         # nothing may reach this window once it is going away
         self.session.undo_stack.cleanChanged.disconnect(self.update_title)
         self.timeline.shutdown()
+        self.lattice_rebuild.cancel()  # (its thread is not waited for)
         self.session.shutdown()
         self.viewport.close()

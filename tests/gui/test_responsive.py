@@ -1,0 +1,264 @@
+"""Big models stay responsive (issues 27 and 29): a big model's lattice is rebuilt on a thread
+while the window answers, a model opened in the background arrives with the view's arrays
+computed on the loading thread, closed models are drawn without their back faces (the same
+picture), a moving camera draws the proxy and the full mesh comes back after a pause, and
+the editor's process ends as soon as its window has closed. Behaviour only: the times are
+the benchmark's (benchmarks/window.py, benchmarks/opening.py)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+from tests.gui.conftest import open_window, wait_idle
+
+
+def _record_threads(monkeypatch):
+    """Which threads computed the view's arrays (DisplayPrep.of)."""
+    from isochor.app.view import meshprep
+
+    seen: list[str] = []
+    make = meshprep.DisplayPrep.of.__func__
+
+    def of(cls, surface, nodes):
+        seen.append(threading.current_thread().name)
+        return make(cls, surface, nodes)
+
+    monkeypatch.setattr(meshprep.DisplayPrep, "of", classmethod(of))
+    return seen
+
+
+@pytest.fixture
+def held_rebuild(monkeypatch):
+    """Every lattice rebuild runs on its thread (whatever the model's size) and waits there
+    for ``release`` before it computes anything."""
+    from isochor.app.window import rebuild
+
+    release = threading.Event()
+    prepare = rebuild.prepare_rebuild
+
+    def held(base, shape):
+        assert release.wait(30)
+        return prepare(base, shape)
+
+    monkeypatch.setattr(rebuild, "BACKGROUND_FACES", 0)
+    monkeypatch.setattr(rebuild, "prepare_rebuild", held)
+    yield release
+    release.set()
+
+
+def _click_rebuild(qtbot, win, shape) -> None:
+    """Set the Inspector's node counts and press its Rebuild button, as a user does."""
+    from PySide6.QtCore import Qt
+
+    panel = win.panel
+    for box, n in zip(panel.shape, shape, strict=True):
+        box.setValue(n)
+    win.inspector_scroll.ensureWidgetVisible(panel.rebuild)
+    qtbot.mouseClick(panel.rebuild, Qt.MouseButton.LeftButton)
+
+
+def test_a_big_lattice_rebuild_runs_on_a_thread_while_the_window_answers(
+    qtbot, window, held_rebuild, monkeypatch
+):
+    win = window
+    seen = _record_threads(monkeypatch)
+    shape0 = tuple(win.state.lattice.shape)
+    steps0 = win.undo_stack.count()
+    _click_rebuild(qtbot, win, (4, 3, 3))
+    rebuild = win.lattice_rebuild
+    assert rebuild.busy() and rebuild.threads and rebuild.threads[-1].is_alive()
+    # the window answers while the thread works: a timer ticks, the old lattice is drawn
+    ticks = []
+    from PySide6.QtCore import QTimer
+
+    timer = QTimer()
+    timer.timeout.connect(lambda: ticks.append(1))
+    timer.start(10)
+    qtbot.waitUntil(lambda: len(ticks) >= 5, timeout=5_000)
+    timer.stop()
+    assert tuple(win.state.lattice.shape) == shape0 and win.undo_stack.count() == steps0
+    assert "Rebuilding the lattice" in win.statusBar().currentMessage()
+    held_rebuild.set()
+    qtbot.waitUntil(lambda: tuple(win.state.lattice.shape) == (4, 3, 3), timeout=30_000)
+    wait_idle(qtbot, win)
+    assert win.undo_stack.count() == steps0 + 1  # one undo step, as before
+    assert len(win.viewport.nodes) == 4 * 3 * 3  # the view draws the new lattice
+    # the view's arrays were computed on the rebuild's thread, not again on the GUI thread
+    assert seen and all(name.startswith("isochor-lattice-") for name in seen), seen
+    win.undo_stack.undo()
+    wait_idle(qtbot, win)
+    assert tuple(win.state.lattice.shape) == shape0
+
+
+def test_a_rebuild_overtaken_by_an_edit_is_dropped_and_closing_does_not_wait(
+    qtbot, themed_app, held_rebuild
+):
+    from isochor.app.editor import goalrules
+
+    win = open_window(qtbot)
+    wait_idle(qtbot, win)
+    shape0 = tuple(win.state.lattice.shape)
+    win.rebuild_lattice((4, 4, 4))
+    thread = win.lattice_rebuild.threads[-1]
+    win.commit_edit(goalrules.edit_target(win.doc.base(), 90.0))  # an edit meanwhile
+    wait_idle(qtbot, win)
+    held_rebuild.set()
+    qtbot.waitUntil(lambda: not thread.is_alive(), timeout=30_000)
+    qtbot.wait(50)  # (its queued report)
+    assert tuple(win.state.lattice.shape) == shape0, "the edit made meanwhile wins"
+    assert "not rebuilt" in win.statusBar().currentMessage()
+
+    held_rebuild.clear()
+    win.rebuild_lattice((4, 4, 4))
+    thread = win.lattice_rebuild.threads[-1]
+    win.undo_stack.setClean()
+    win.close()  # returns with the thread still held: it is not waited for
+    assert thread.is_alive() and win.closed
+    held_rebuild.set()
+    thread.join(30)
+
+
+def test_a_model_opened_in_the_background_brings_the_views_arrays(qtbot, window, monkeypatch):
+    from isochor import assets
+
+    win = window
+    seen = _record_threads(monkeypatch)
+    path = assets.model_files()["club"]
+    assert win.files.open_path(path, background=True)
+    qtbot.waitUntil(
+        lambda: not win.files.loading() and "club" in win.doc.title.lower(), timeout=60_000
+    )
+    wait_idle(qtbot, win)
+    assert seen == [seen[0]] and seen[0].startswith("isochor-open-"), seen
+    assert win.viewport.scene.model.full.n_faces == win.state.surface.full.n_faces
+
+
+def test_a_closed_model_is_culled_and_looks_the_same(qtbot, window):
+    """The example's torus is closed: its back faces are culled, and the picture from
+    outside is the same pixel for pixel with and without culling."""
+    win = window
+    vp = win.viewport
+    model = vp.scene.model
+    assert model.full.closed and model.cull
+    assert model.full.actor.GetProperty().GetBackfaceCulling()
+
+    def picture() -> np.ndarray:
+        vp.render()
+        return np.asarray(vp.screenshot(return_img=True)).copy()
+
+    culled = picture()
+    model.set_culling(False)
+    assert not model.full.actor.GetProperty().GetBackfaceCulling()
+    drawn = picture()
+    model.set_culling(True)
+    assert culled.shape == drawn.shape
+    assert np.abs(culled.astype(int) - drawn.astype(int)).max() <= 1
+
+
+@pytest.fixture
+def big_torus(qtbot, themed_app, tmp_path):
+    """The window on a torus of 65536 triangles (a model with a proxy), made at run time."""
+    import trimesh
+
+    from isochor.app.editor.document import Document
+    from isochor.core.scenario.shapes import torus_levels
+
+    mesh = torus_levels(7)[-1]
+    path = tmp_path / "torus65k.ply"
+    trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), process=False).export(path)
+    doc = Document.open(path)
+    win = open_window(qtbot, doc, size=(1000, 700))
+    wait_idle(qtbot, win)
+    assert win.viewport.scene.model.proxy is not None
+    yield win
+    win.undo_stack.setClean()
+    win.close()
+
+
+def test_turning_the_camera_draws_the_proxy_then_the_full_mesh_after_a_pause(qtbot, big_torus):
+    from PySide6.QtCore import QPoint, Qt
+    from PySide6.QtTest import QTest
+
+    from isochor.app.view.modeldraw import IDLE_MS
+
+    win = big_torus
+    vp = win.viewport
+    frames = vp.model_frames
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    corner = QPoint(15, vp.height() - 15)  # empty space: a camera turn
+    left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
+    QTest.mousePress(vp, left, none, corner)
+    assert frames.drawn_model().startswith("proxy"), "the camera's renders are a proxy's"
+    for dx in range(10, 90, 10):
+        QTest.mouseMove(vp, corner + QPoint(dx, -dx // 2))
+        qtbot.wait(IDLE_MS // 5)  # moves keep the proxy: no pause yet
+        assert frames.drawn_model().startswith("proxy")
+    QTest.mouseRelease(vp, left, none, corner + QPoint(80, -40))
+    assert not frames.showing_full()
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)  # after the pause
+    assert frames.drawn_model().startswith("full mesh")
+    # the wheel zooms on the proxy too
+    from PySide6.QtCore import QPointF
+    from PySide6.QtGui import QWheelEvent
+
+    pos = QPointF(vp.width() / 2, vp.height() / 2)
+    wheel = QWheelEvent(
+        pos,
+        vp.mapToGlobal(pos),
+        QPoint(),
+        QPoint(0, 120),
+        Qt.MouseButton.NoButton,
+        none,
+        Qt.ScrollPhase.NoScrollPhase,
+        False,
+    )
+    from PySide6.QtWidgets import QApplication
+
+    QApplication.sendEvent(vp, wheel)
+    assert frames.drawn_model().startswith("proxy")
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)
+
+
+QUIT_CHILD = r"""
+import sys
+from PySide6.QtCore import QTimer
+from PySide6.QtWidgets import QApplication
+from isochor.app.cli import launch
+from isochor.app.window.mainwindow import MainWindow
+
+app = QApplication([sys.argv[0]])
+
+def poll():
+    wins = [w for w in app.topLevelWidgets() if isinstance(w, MainWindow) and w.isVisible()]
+    if wins and not wins[0].is_solving():
+        timer.stop()
+        print("closing", flush=False)  # left in the buffer: the exit must flush it
+        wins[0].undo_stack.setClean()
+        wins[0].close()
+
+timer = QTimer()
+timer.timeout.connect(poll)
+timer.start(50)
+launch.run_editor(None)
+print("returned")  # never: the editor's process ends when its window has closed
+"""
+
+
+def test_the_editor_process_ends_when_its_window_closes(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    done = subprocess.run(
+        [sys.executable, "-c", QUIT_CHILD],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+        cwd=tmp_path,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["closing"]
