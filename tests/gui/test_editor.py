@@ -271,9 +271,9 @@ def test_opening_a_refused_model_shows_the_error_and_keeps_the_document(qtbot, w
     from tests.gui.conftest import MODELS
 
     pytest.importorskip("isochor.core.io.meshio")
-    teapot = MODELS / "teapot.obj"
-    if not teapot.exists():
-        pytest.skip(f"{teapot} is not there")
+    soup = MODELS / "soup.stl"  # loose triangles: no solid to keep
+    if not soup.exists():
+        pytest.skip(f"{soup} is not there")
     win = window
     shown = []
     monkeypatch.setattr(
@@ -282,8 +282,8 @@ def test_opening_a_refused_model_shows_the_error_and_keeps_the_document(qtbot, w
         staticmethod(lambda parent, title, text, *a, **k: shown.append(text)),
     )
     doc, nodes = win.doc, np.array(win.state.nodes)
-    assert win.files.open_path(teapot) is False
-    assert len(shown) == 1 and "teapot" in shown[0].lower()
+    assert win.files.open_path(soup) is False
+    assert len(shown) == 1 and "soup" in shown[0].lower()
     assert "Error" not in shown[0].split(":")[0], "the core's message, not a traceback"
     assert win.doc is doc and np.array_equal(win.state.nodes, nodes)
     assert win.state.problem.scenario.model == {"builtin": "torus"}
