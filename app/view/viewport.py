@@ -358,7 +358,9 @@ class Viewport(QtInteractor):
         if self.node_drag.active:  # another button during a drag: ignore it
             return
         if ev.button() == Qt.MouseButton.LeftButton:
-            row = self.camera_control.node_at(pos)
+            ctrl = bool(ev.modifiers() & Qt.KeyboardModifier.ControlModifier)
+            placing = (self.handle_tool.active or ctrl) and not shift
+            row = self.camera_control.node_at(pos, prefer_visible=True, placing=placing)
             if (row < 0 or row in self.selection) and not shift and self._gizmo_press(pos):
                 return
             handle = None if shift else self.handle_tool.press(pos)
@@ -376,11 +378,10 @@ class Viewport(QtInteractor):
                     self.selectRequested.emit([row], "replace")
                 self._press = NodePress(row, pos)
                 return
-            ctrl = bool(ev.modifiers() & Qt.KeyboardModifier.ControlModifier)
-            if (self.handle_tool.active or ctrl) and not shift:
-                placing = self.handle_tool.model_press(pos)
-                if placing is not None:
-                    self._press = placing
+            if placing:
+                press = self.handle_tool.model_press(pos)
+                if press is not None:
+                    self._press = press
                     self.model_frames.hold_proxy()
                     return
             if shift or self.box_mode:
@@ -464,7 +465,9 @@ class Viewport(QtInteractor):
             super().mouseReleaseEvent(ev)
             at = self.mapToGlobal(pos.toPoint())
             if not moved and not self.handle_tool.context(pos, at):
-                self.contextMenuRequested.emit(self.camera_control.node_at(pos), at)
+                self.contextMenuRequested.emit(
+                    self.camera_control.node_at(pos, prefer_visible=True), at
+                )
         self._hover(pos)
 
     def _hover(self, pos: QPointF) -> None:
