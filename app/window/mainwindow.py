@@ -28,6 +28,7 @@ from ..editor.document import Document, plural
 from ..session.controller import EditorSession
 from ..view.viewport import Viewport
 from .actions import ActionSet
+from .autosave import AutoSave
 from .files import FileCommands
 from .framedraw import FrameDrawer
 from .handletools import HandleTools
@@ -86,6 +87,7 @@ class MainWindow(QMainWindow):
         )
         self.action_set.build_toolbar()
         self._connect()
+        self.autosave = AutoSave(self)
         self._document_loaded()
         self._status_changed()
 
@@ -407,6 +409,7 @@ class MainWindow(QMainWindow):
         if not self.files.confirm_discard():
             ev.ignore()
             return
+        self.autosave.discard()  # a clean quit: nothing to recover
         self.shutdown()
         super().closeEvent(ev)
 
@@ -416,6 +419,7 @@ class MainWindow(QMainWindow):
         if self.closed:
             return
         self.closed = True
+        self.autosave.stop()
         # nothing may reach this window once it is going away
         self.session.undo_stack.cleanChanged.disconnect(self.update_title)
         self.timeline.shutdown()
