@@ -255,12 +255,18 @@ class Viewport(QtInteractor):
         """The guide line of a locked axis through the dragged point, in the axis's colour
         (a drag's, or a grab, rotate or scale's)."""
         line = self.node_drag.guide() or self.transform_tool.guide()
-        if line is None:
+        plane = self.node_drag.plane_guide() or self.transform_tool.plane_guide()
+        reach = 3 * self.scene.size
+        if line is not None:
+            axis, c = line
+            a = unit(axis) * reach
+            self.scene.set_guide(np.array([c - a, c + a]), style.AXIS_COLOURS[axis])
+        elif plane is not None:  # a cross of the plane's two axes, in the guide's colour
+            axis, c = plane
+            u, v = (unit(o) * reach for o in "xyz" if o != axis)
+            self.scene.set_guide(np.array([c - u, c + u, c - v, c + v]), style.GUIDE)
+        else:
             self.scene.set_guide(None)
-            return
-        axis, c = line
-        a = unit(axis) * 3 * self.scene.size
-        self.scene.set_guide(np.array([c - a, c + a]), style.AXIS_COLOURS[axis])
 
     def show_info(self, text: str) -> None:
         """A one-line note at the bottom left of the view (empty hides it)."""

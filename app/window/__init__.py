@@ -6,6 +6,7 @@
 - :mod:`.files`         FileCommands: open, save, export, the unsaved-changes prompt
 - :mod:`.autosave`      AutoSave: the recovery file while changes are unsaved, the offer to
   recover at start
+- :mod:`.layout`        LayoutMemory: the docks and the window's geometry kept between runs
 - :mod:`.loading`       big models opened in the background, with progress and Cancel
 - :mod:`.framedraw`     FrameDrawer: the window's frames, what the session hands out, drawn
 - :mod:`.tools`         NodeTools: G/R/S wired to the session, the selection helpers

@@ -64,6 +64,8 @@ def test_keys_scrub_to_a_solved_in_between_frame_undo_and_redo(qtbot, sphere, tm
     bar = panel.scrubber
     st = win.state
     size, rest_volume = st.surface.size, st.surface.rest_volume
+    assert not win.timeline_dock.isVisible(), "no keys: the view has the room"
+    win.timeline_dock.toggleViewAction().trigger()  # View > Timeline
     assert win.timeline_dock.isVisible() and tool.frame == 0
     assert "no keys yet" in panel.info.text()
 
