@@ -29,10 +29,10 @@ from ..session.controller import EditorSession
 from ..view.viewport import Viewport
 from .actions import ActionSet
 from .autosave import AutoSave
-from .layout import LayoutMemory
 from .files import FileCommands
 from .framedraw import FrameDrawer
 from .handletools import HandleTools
+from .layout import LayoutMemory
 from .panel import Panel, bind
 from .plot import ConvergencePlot
 from .readout import Readout
