@@ -88,9 +88,9 @@ class Session:
         - ``preserve``: ``"total"`` (one volume, the default) or ``"per-body"`` (each
           closed body keeps its own)
         - ``keep_centroid``: also keep the solid's centre of mass where it was
-        - ``anchor``: ``"far-side"`` (the default: while too little is fixed to hold the
-          lattice, the face away from the moved nodes stays put) or ``"none"`` (the
-          paper's behaviour)
+        - ``anchor``: ``"far-side"`` (the default: the lattice face the edit pushes
+          towards, or the farthest from it, stays put unless you fixed that side) or
+          ``"none"`` (the paper's behaviour)
         - ``fold_guard``: penalise folding the model inside out (default True)
         - ``symmetry``: ``"x"``, ``"y"`` or ``"z"``: edits and results are mirror images
           across that mid-plane of the lattice; ``"none"`` (the default)
