@@ -262,6 +262,14 @@ class Session:
         """Send handle ``index`` to ``to``."""
         self.handles[index] = self.handles[index].moved_to(to)
 
+    def remove_handle(self, index: int) -> None:
+        """Remove handle ``index``; the next solve gives what the remaining edit gives (the
+        free coordinates start from rest again: started from the current nodes, the springs
+        would keep the turn and shift the handle caused)."""
+        del self.handles[index]
+        free = ~self.fixed
+        self.nodes[free] = self.lattice.rest_nodes[free]
+
     # -- solving -----------------------------------------------------------------------------
     def steps(self) -> Generator[Progress, None, SolveResult]:
         """Solve step by step: yields a :class:`~isochor.core.solve.records.Progress` record per

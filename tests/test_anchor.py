@@ -138,3 +138,15 @@ def test_the_far_side_stays_through_the_command_line(tmp_path, case):
     out = isochor.Session(tmp_path / "out.obj")
     rest = s.problem.surface.full.vertices
     check_far_side(s.lattice, rest, run.report["nodes"], out.problem.surface.full.vertices)
+
+
+def test_removing_the_only_handle_returns_the_model_to_rest():
+    s = isochor.Session(model("kitten.obj"))
+    apply_case(s, "handle")
+    r = s.solve()
+    assert r.converged and r.held_face == "y min"
+    s.remove_handle(0)
+    back = s.solve()
+    assert back.converged and s.handles == []
+    size = s.lattice.size
+    assert np.abs(np.asarray(back.nodes) - s.lattice.rest_nodes).max() < 1e-9 * size
