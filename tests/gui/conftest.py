@@ -61,6 +61,20 @@ def _isolated_user_state(tmp_path_factory):
             os.environ[k] = v
 
 
+@pytest.fixture(autouse=True)
+def _default_layout():
+    """Each window test starts from the default layout: what an earlier test's window kept
+    (the window saves its layout when it closes) is forgotten."""
+    if _IMPORT_PROBLEM:  # the test is skipped: no Qt to ask
+        yield
+        return
+    from isochor.app.window.layout import settings
+
+    settings().clear()
+    yield
+    settings().clear()
+
+
 @pytest.fixture(scope="session")
 def themed_app(qapp):
     from isochor.app.view import style

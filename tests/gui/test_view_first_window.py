@@ -9,21 +9,10 @@ its scroll position when the selection changes.
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from tests.gui.conftest import open_window, save_shot, wait_idle
 from tests.gui.test_editor import click, drag, pickable_node, point, screen_positions
 from tests.gui.test_tools_window import hover, layer_x, points_of, press_keys
-
-
-@pytest.fixture(autouse=True)
-def _no_layout_kept():
-    """Each test starts from the default layout."""
-    from isochor.app.window.layout import settings
-
-    settings().clear()
-    yield
-    settings().clear()
 
 
 def view_share(win) -> float:
