@@ -100,9 +100,9 @@ WHY = {
     ),
     "memory": "",
     "anchor": (
-        "The far-side rule holds a face only while the fixed coordinates leave the lattice "
-        "free to move rigidly (core/goal/anchor.py); a far layer that moves means the case pinned "
-        "enough to hold the lattice itself, or the rule chose another face."
+        "The far-side rule holds the face the edit pushes towards, else the farthest, unless "
+        "the case fixed nodes on the far side that hold the lattice (core/goal/anchor.py); a "
+        "far layer that moves means the case did, or the rule chose another face."
     ),
     "fold_free": (
         "The guard is a penalty (a cubic hinge below det J = 0.05 min(1, ratio)), not a hard "

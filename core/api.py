@@ -105,9 +105,9 @@ class Session:
         - ``preserve``: ``"total"`` (one volume, the default) or ``"per-body"`` (each
           closed body keeps its own)
         - ``keep_centroid``: also keep the solid's centre of mass where it was
-        - ``anchor``: ``"far-side"`` (the default: while too little is fixed to hold the
-          lattice, the face away from the moved nodes stays put) or ``"none"`` (the
-          paper's behaviour)
+        - ``anchor``: ``"far-side"`` (the default: the lattice face the edit pushes
+          towards, or the farthest from it, stays put unless you fixed that side) or
+          ``"none"`` (the paper's behaviour)
         - ``fold_guard``: penalise folding the model inside out (default True)
         - ``symmetry``: ``"x"``, ``"y"`` or ``"z"``: edits and results are mirror images
           across that mid-plane of the lattice; ``"none"`` (the default)
@@ -292,6 +292,14 @@ class Session:
     def move_handle(self, index: int, to: Sequence[float]) -> None:
         """Send handle ``index`` to ``to``."""
         self.handles[index] = self.handles[index].moved_to(to)
+
+    def remove_handle(self, index: int) -> None:
+        """Remove handle ``index``; the next solve gives what the remaining edit gives (the
+        free coordinates start from rest again: started from the current nodes, the springs
+        would keep the turn and shift the handle caused)."""
+        del self.handles[index]
+        free = ~self.fixed
+        self.nodes[free] = self.lattice.rest_nodes[free]
 
     # -- solving -----------------------------------------------------------------------------
     def steps(self) -> Generator[Progress, None, SolveResult]:

@@ -185,10 +185,11 @@ def test_far_side_holds_the_face_farthest_from_the_moved_node():
     x[edge, 2] -= 0.5
     fixed[edge] = True
     assert held_face(lat, x, fixed)[1] == "z min"
-    # a whole layer moved leaves no rigid motion: nothing is added
+    # a whole layer moved leaves no rigid motion, and the bottom is still held: the push
+    # squashes the model against the ground instead of carrying it down
     top = [lat.index(i, j, 2) for i in range(4) for j in range(3)]
     fixed[top] = True
-    assert held_face(lat, x, fixed)[1] == ""
+    assert held_face(lat, x, fixed)[1] == "z min"
     # enough pins of the user's own: nothing is added
     x = lat.rest_nodes.copy()
     fixed[:] = False
@@ -196,3 +197,78 @@ def test_far_side_holds_the_face_farthest_from_the_moved_node():
     for ijk in [(0, 0, 0), (3, 0, 0), (3, 2, 0), (0, 2, 2)]:
         fixed[lat.index(*ijk)] = True
     assert not held_face(lat, x, fixed)[0].any()
+
+
+def _box(shape=(4, 3, 3)):
+    lat = Lattice.around(np.array([[0, 0, 0], [4, 1, 2.0]]), shape)
+    return lat, lat.rest_nodes.copy(), np.zeros((lat.n_nodes, 3), bool)
+
+
+def _layer(lat, axis, index):
+    return [r for r in range(lat.n_nodes) if lat.ijk(r)[axis] == index]
+
+
+def test_a_push_holds_the_face_it_pushes_towards_even_on_a_wide_lattice():
+    lat, x, fixed = _box()
+    corner = lat.index(0, 0, 2)  # a top corner: x max is the farthest face (4 long)
+    x[corner, 2] -= 0.4  # ... but the push is down: the ground stays
+    fixed[corner] = True
+    assert held_face(lat, x, fixed)[1] == "z min"
+    x[corner] += [0.3, 0, 0.4]  # pushed along +x instead: the face ahead of it
+    assert held_face(lat, x, fixed)[1] == "x max"
+
+
+def test_a_pull_holds_the_face_behind_the_edit_not_the_one_just_ahead():
+    lat, x, fixed = _box()
+    at = np.array([[3.9, 0.5, 1.0]])  # a handle near the x max face, pulled forward
+    hold, name = held_face(lat, x, fixed, points=at, targets=at + [0.5, 0, 0])
+    assert name == "x min" and hold.sum() == 9
+    hold, name = held_face(lat, x, fixed, points=at, targets=at - [0.5, 0, 0])
+    assert name == "x min"  # pushed back into the body: the same face, it pushes towards it
+    mid = np.array([[2.0, 0.5, 1.0]])  # a handle in the middle pushed down: the ground
+    assert held_face(lat, x, fixed, points=mid, targets=mid - [0, 0, 0.3])[1] == "z min"
+    assert held_face(lat, x, fixed, points=mid, targets=mid + [0, 0, 0.3])[1] == "z max"
+
+
+@pytest.mark.parametrize("how", ["scale", "turn"])
+def test_a_scale_or_turn_of_the_top_holds_the_farthest_face(how):
+    lat, x, fixed = _box((3, 3, 4))
+    top = _layer(lat, 2, 3)
+    c = x[top].mean(axis=0)
+    if how == "scale":
+        x[top] = c + 0.8 * (x[top] - c)
+    else:
+        t = np.radians(30)
+        rot = np.array([[np.cos(t), -np.sin(t), 0], [np.sin(t), np.cos(t), 0], [0, 0, 1]])
+        x[top] = c + (x[top] - c) @ rot.T
+    fixed[top] = True
+    assert held_face(lat, x, fixed)[1] == "z min"
+
+
+def test_the_user_decides_on_the_far_side():
+    lat, x, fixed = _box()
+    top = _layer(lat, 2, 2)
+    x[top, 2] -= 0.3
+    fixed[top] = True
+    bottom = _layer(lat, 2, 0)
+    pins = fixed.copy()
+    pins[bottom, 2] = True  # the ground pinned on z only: the model may slide on it
+    hold, name = held_face(lat, x, pins)
+    assert not hold.any() and name == ""
+    one = fixed.copy()
+    one[bottom[0]] = True  # one node pinned there, with the top layer holding the rest
+    assert held_face(lat, x, one)[1] == ""
+    # a top corner pushed down and one ground node pinned: the lattice could still turn
+    # about that node, so the ground is held all the same
+    x2, corner = lat.rest_nodes.copy(), np.zeros_like(fixed)
+    x2[top[0], 2] -= 0.3
+    corner[[top[0], bottom[-1]]] = True
+    assert held_face(lat, x2, corner)[1] == "z min"
+    # a pin in the middle is not on the far side: the ground is held too
+    middle = fixed.copy()
+    middle[_layer(lat, 2, 1)] = True
+    assert held_face(lat, x, middle)[1] == "z min"
+    # edits on every face leave nothing to hold
+    x[bottom, 2] += 0.1
+    fixed[bottom] = True
+    assert held_face(lat, x, fixed)[1] == ""

@@ -208,6 +208,29 @@ def test_nearest_picks_the_closest_on_screen(proj):
     assert nearest(proj, pts, x, y) == 1
 
 
+def test_a_visible_node_wins_over_a_hidden_one_and_placing_skips_hidden_ones(proj):
+    from isochor.app.view.picking import occluded
+
+    x, y = 250.0, 180.0
+    hidden_near = at(proj, x, y, 0.6)  # right under the cursor, behind the wall
+    visible_aside = at(proj, x + 8, y, -0.5)  # 8 px off, in front of the wall
+    # a wall (two triangles) drawn over the cursor at depth 0.2
+    corners = np.array(
+        [at(proj, x + dx, y + dy, 0.2) for dx, dy in [(-5, -5), (5, -5), (5, 5), (-5, 5)]]
+    )
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+
+    def hidden(points):
+        return occluded(proj, points, corners, faces)
+
+    pts = [hidden_near, visible_aside]
+    assert hidden(np.array(pts)).tolist() == [True, False]
+    assert nearest(proj, pts, x, y) == 0  # without the model: the nearest on screen
+    assert nearest(proj, pts, x, y, hidden=hidden) == 1  # the visible one wins
+    assert nearest(proj, [hidden_near], x, y, hidden=hidden) == 0  # only hidden: picked
+    assert nearest(proj, [hidden_near], x, y, hidden=hidden, skip_hidden=True) == -1
+
+
 def test_nearest_prefers_the_front_one_of_two_at_the_same_pixel(proj):
     x, y = 250.0, 180.0
     front, back = at(proj, x, y, -0.2), at(proj, x, y, 0.6)

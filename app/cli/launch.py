@@ -143,6 +143,9 @@ def run_editor(
         limit = SCREENSHOT_TIMEOUT if timeout is None else timeout
         return take_screenshot(app, window, screenshot, limit)
     window.show()
+    from PySide6.QtCore import QTimer
+
+    QTimer.singleShot(0, window.autosave.offer)  # what a crash or a kill left, if anything
     if later:
         window.files.open_path(path)
     if opening_error is not None:

@@ -19,4 +19,5 @@ Tested headless (``tests/test_document.py``, ``tests/test_tool_rules.py``,
 - :mod:`.transform`     grab / rotate / scale with axis locks and typed values
 - :mod:`.timeline`      the timeline's keys and settings, the frame cache, what a frame shows
 - :mod:`.timelinerules` keys, range, rate and interpolation as edits
+- :mod:`.recovery`      the recovery file of unsaved work: where, write, read, left behind
 """

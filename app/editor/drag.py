@@ -87,7 +87,13 @@ class DragSession:
         fixed[self.rows] = True
         return fixed
 
-    def finish(self, free: np.ndarray | None = None) -> Edit:
-        """The edit the drag made; ``free`` are the newest live nodes, if any."""
+    def finish(self, free: np.ndarray | None = None) -> Edit | None:
+        """The edit the drag made; ``free`` are the newest live nodes, if any. None when
+        it moved no node (a scale by 1, a scale or turn of one node about itself): that
+        is no edit, and fixes nothing."""
+        moved = np.abs(self.nodes[self.rows] - self.base[self.rows])
+        scale = max(1.0, float(np.abs(self.base).max()))
+        if not moved.size or moved.max() <= 16 * np.finfo(float).eps * scale:  # roundings
+            return None
         nodes = self.nodes if free is None else self.with_dragged(free)
         return Edit(self.before.state.moved_to(nodes, self.rows), self.text)

@@ -212,5 +212,6 @@ def _held(st: DocState, nodes, fixed, handles) -> tuple[np.ndarray, str]:
         fixed,
         rows=handle_rows(lattice, handles)[0] if handles else None,
         points=np.array([h.at for h in handles]).reshape(-1, 3),
+        targets=np.array([h.to for h in handles]).reshape(-1, 3),
         mirror_axis=None if mirror is None else mirror.axis,
     )

@@ -134,4 +134,18 @@ def edit_remove_handle(base: EditBase, index: int | None = None) -> Edit | None:
     if index is None or not 0 <= index < len(st.handles):
         return None
     handles = st.handles[:index] + st.handles[index + 1 :]
-    return Edit(st.edited(nodes=base.start(), handles=handles), "Remove handle")
+    # nothing moved, no handle and the volume kept: the rest lattice is the answer
+    at_rest = not handles and not st.moved.any() and st.goal.target_ratio == 1.0
+    new = st.edited(nodes=remaining_start(st), handles=handles, solved=at_rest)
+    return Edit(new, "Remove handle")
+
+
+def remaining_start(st: DocState) -> np.ndarray:
+    """Where the solve after a removal starts: the fixed coordinates where they are, the free
+    ones at rest. Started from the nodes on screen, the springs (which cost nothing under a
+    rigid motion) would keep the turn and shift the removed handle had caused; from rest,
+    the solve gives what the remaining edit gives (nothing left: the model at rest)."""
+    nodes = np.array(st.nodes, dtype=np.float64)
+    free = ~st.fixed_axes
+    nodes[free] = st.lattice.rest_nodes[free]
+    return nodes

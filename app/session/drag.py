@@ -128,7 +128,9 @@ class SessionDrag:
         self.near_next = self.live_active() and doc.live_nodes is not None
         host.stop()
         host.activity("idle")
-        host.commit(doc.end_drag())
+        before = doc.drag.before if doc.drag is not None else None
+        if not host.commit(doc.end_drag()) and before is not None:
+            doc.set_cell(before)  # nothing moved: the state from before (no live preview)
 
     def cancel(self) -> None:
         """The drag ends without an edit: the state from before it comes back."""

@@ -70,11 +70,25 @@ class CameraControl:
         return v / n if n > 0 else unit("z")
 
     # -- what is under the cursor ------------------------------------------------------------
-    def node_at(self, pos: QPointF | QPoint) -> int:
-        """Row of the node drawn under ``pos`` (the nearest within the pick radius), or -1."""
+    def node_at(self, pos: QPointF | QPoint, *, prefer_visible: bool = False, placing=False) -> int:
+        """Row of the node drawn under ``pos`` (the nearest within the pick radius), or -1.
+
+        ``prefer_visible``: a node the model does not hide wins over hidden ones near the
+        cursor; ``placing`` (a click that places a handle): a node the model hides is not
+        picked at all, the click is on the surface in front of it."""
         if not self.scene.show_lattice:
             return -1
-        return picking.nearest(self.projection(), self.scene.nodes, pos.x(), pos.y())
+        proj = self.projection()
+        hidden = None
+        if (prefer_visible or placing) and self.scene.built:
+            verts, faces = self.scene.model_points(), self.scene.model_faces()
+
+            def hidden(points):
+                return picking.occluded(proj, points, verts, faces)
+
+        return picking.nearest(
+            proj, self.scene.nodes, pos.x(), pos.y(), hidden=hidden, skip_hidden=placing
+        )
 
     def nodes_in_rect(self, rect: QRect) -> np.ndarray:
         return picking.in_rect(

@@ -130,7 +130,7 @@ class HandleTool(QObject):
     def cursor(self, pos: QPointF) -> Qt.CursorShape:
         """The cursor over ``pos``: a hand over what can be dragged, a cross where a click
         places a handle."""
-        if self.camera.node_at(pos) >= 0 or self.handle_at(pos) >= 0:
+        if self.camera.node_at(pos, placing=self.active) >= 0 or self.handle_at(pos) >= 0:
             return Qt.CursorShape.OpenHandCursor
         if self.active:
             return Qt.CursorShape.CrossCursor

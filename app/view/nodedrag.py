@@ -123,3 +123,11 @@ class NodeDragger(QObject):
         if drag is None or drag.axis is None or drag.plane:
             return None
         return drag.axis, drag.anchor + drag.delta
+
+    def plane_guide(self) -> tuple[str, np.ndarray] | None:
+        """The axis across whose plane the move is locked and the grabbed point as moved,
+        or None (no drag, free or locked to an axis)."""
+        drag = self.drag
+        if drag is None or drag.axis is None or not drag.plane:
+            return None
+        return drag.axis, drag.anchor + drag.delta

@@ -74,11 +74,22 @@ class Projection:
         return near, d / np.linalg.norm(d)
 
 
-def nearest(proj: Projection, points, x: float, y: float, radius: float = PICK_RADIUS) -> int:
+def nearest(
+    proj: Projection,
+    points,
+    x: float,
+    y: float,
+    radius: float = PICK_RADIUS,
+    hidden=None,
+    skip_hidden: bool = False,
+) -> int:
     """Row of the point drawn nearest to (x, y) within ``radius`` pixels, or -1.
 
     Among points about equally near (within :data:`PICK_TIE` pixels of the nearest), the
     one in front wins, so a click on a node in front of another picks the front one.
+    ``hidden``, a function of (k, 3) points giving (k,) bool (what the model hides), makes
+    the visible points within the radius win over hidden ones; with ``skip_hidden`` a hidden
+    point is never picked (a click that places a handle on the surface in front of it).
     """
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if len(points) == 0:
@@ -87,6 +98,10 @@ def nearest(proj: Projection, points, x: float, y: float, radius: float = PICK_R
     d = np.hypot(xy[:, 0] - x, xy[:, 1] - y)
     d[~visible] = np.inf
     near = np.flatnonzero(d <= radius)
+    if len(near) and hidden is not None:
+        behind = np.asarray(hidden(points[near]), dtype=bool)
+        if skip_hidden or not behind.all():
+            near = near[~behind]
     if len(near) == 0:
         return -1
     close = near[d[near] <= d[near].min() + PICK_TIE]

@@ -154,7 +154,8 @@ class Scene:
             name="mirror",
         )
         self.actors["mirror"].SetVisibility(False)
-        self._guide = pv.Line((0, 0, 0), (1, 0, 0))
+        # two segments: an axis lock draws one (twice), a plane lock the plane's two axes
+        self._guide = pv.PolyData(np.zeros((4, 3)), lines=np.array([2, 0, 1, 2, 2, 3]))
         self.actors["guide"] = p.add_mesh(
             self._guide,
             color=style.GUIDE,
@@ -234,13 +235,16 @@ class Scene:
         self._apply_visibility()
 
     def set_guide(self, ends: np.ndarray | None, color: str = style.GUIDE) -> None:
-        """Show the axis-lock guide line between ``ends`` (2, 3) in ``color`` (the locked
-        axis's), or hide it (None)."""
+        """Show the lock's guide: the line between ``ends`` (2, 3) (an axis lock, in its
+        colour) or the two lines of ``ends`` (4, 3) (a plane lock's two axes); None hides
+        it."""
         actor = self.actors.get("guide")
         if actor is None:
             return
         if ends is not None:
-            self._guide.points[:] = ends
+            ends = np.asarray(ends, dtype=np.float64).reshape(-1, 3)
+            self._guide.points[:] = ends if len(ends) == 4 else np.vstack([ends, ends])
+            self._guide.Modified()
             actor.GetProperty().SetColor(*(c / 255 for c in style.hex_to_rgb(color)))
         actor.SetVisibility(ends is not None)
 

@@ -213,3 +213,12 @@ class TransformTool(QObject):
             return None
         m = t.matrix()
         return axis, m[:3, :3] @ t.centre + m[:3, 3]
+
+    def plane_guide(self) -> tuple[str, np.ndarray] | None:
+        """The axis across whose plane the gesture is locked and the selection's centre as
+        mapped, or None."""
+        t = self.transform
+        if t is None or t.axis is None or not t.plane:
+            return None
+        m = t.matrix()
+        return t.axis, m[:3, :3] @ t.centre + m[:3, 3]

@@ -255,12 +255,18 @@ class Viewport(QtInteractor):
         """The guide line of a locked axis through the dragged point, in the axis's colour
         (a drag's, or a grab, rotate or scale's)."""
         line = self.node_drag.guide() or self.transform_tool.guide()
-        if line is None:
+        plane = self.node_drag.plane_guide() or self.transform_tool.plane_guide()
+        reach = 3 * self.scene.size
+        if line is not None:
+            axis, c = line
+            a = unit(axis) * reach
+            self.scene.set_guide(np.array([c - a, c + a]), style.AXIS_COLOURS[axis])
+        elif plane is not None:  # a cross of the plane's two axes, in the guide's colour
+            axis, c = plane
+            u, v = (unit(o) * reach for o in "xyz" if o != axis)
+            self.scene.set_guide(np.array([c - u, c + u, c - v, c + v]), style.GUIDE)
+        else:
             self.scene.set_guide(None)
-            return
-        axis, c = line
-        a = unit(axis) * 3 * self.scene.size
-        self.scene.set_guide(np.array([c - a, c + a]), style.AXIS_COLOURS[axis])
 
     def show_info(self, text: str) -> None:
         """A one-line note at the bottom left of the view (empty hides it)."""
@@ -363,7 +369,9 @@ class Viewport(QtInteractor):
         if self.node_drag.active:  # another button during a drag: ignore it
             return
         if ev.button() == Qt.MouseButton.LeftButton:
-            row = self.camera_control.node_at(pos)
+            ctrl = bool(ev.modifiers() & Qt.KeyboardModifier.ControlModifier)
+            placing = (self.handle_tool.active or ctrl) and not shift
+            row = self.camera_control.node_at(pos, prefer_visible=True, placing=placing)
             if (row < 0 or row in self.selection) and not shift and self._gizmo_press(pos):
                 return
             handle = None if shift else self.handle_tool.press(pos)
@@ -381,11 +389,10 @@ class Viewport(QtInteractor):
                     self.selectRequested.emit([row], "replace")
                 self._press = NodePress(row, pos)
                 return
-            ctrl = bool(ev.modifiers() & Qt.KeyboardModifier.ControlModifier)
-            if (self.handle_tool.active or ctrl) and not shift:
-                placing = self.handle_tool.model_press(pos)
-                if placing is not None:
-                    self._press = placing
+            if placing:
+                press = self.handle_tool.model_press(pos)
+                if press is not None:
+                    self._press = press
                     self.model_frames.hold_proxy()
                     return
             if shift or self.box_mode:
@@ -472,7 +479,9 @@ class Viewport(QtInteractor):
             super().mouseReleaseEvent(ev)
             at = self.mapToGlobal(pos.toPoint())
             if not moved and not self.handle_tool.context(pos, at):
-                self.contextMenuRequested.emit(self.camera_control.node_at(pos), at)
+                self.contextMenuRequested.emit(
+                    self.camera_control.node_at(pos, prefer_visible=True), at
+                )
         self._hover(pos)
 
     def _hover(self, pos: QPointF) -> None:

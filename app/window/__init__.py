@@ -4,6 +4,9 @@
   the parts below as fields
 - :mod:`.actions`       ActionSet: every action by name, the menus and the toolbar
 - :mod:`.files`         FileCommands: open, save, export, the unsaved-changes prompt
+- :mod:`.autosave`      AutoSave: the recovery file while changes are unsaved, the offer to
+  recover at start
+- :mod:`.layout`        LayoutMemory: the docks and the window's geometry kept between runs
 - :mod:`.loading`       big models opened in the background, with progress and Cancel
 - :mod:`.rebuild`       LatticeRebuild: a big model's lattice rebuilt on a thread
 - :mod:`.framedraw`     FrameDrawer: the window's frames, what the session hands out, drawn

@@ -430,7 +430,9 @@ class ActionSet:
         tb.setObjectName("main-toolbar")
         tb.setMovable(False)
         tb.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
-        win.addToolBar(tb)
+        # in the menu bar's row, as Blender's header: the view keeps the height (the file
+        # commands and the standard views are in the menus, with their keys)
+        win.menuBar().setCornerWidget(tb, Qt.Corner.TopRightCorner)
         for action, text in (
             (self.open, "Open"),
             (self.save, "Save"),
@@ -446,10 +448,6 @@ class ActionSet:
         ):
             action.setIconText(text)
         buttons: tuple[QAction | None, ...] = (
-            self.open,
-            self.save,
-            self.export,
-            None,
             self.undo,
             self.redo,
             None,
@@ -464,10 +462,6 @@ class ActionSet:
         )
         for entry in buttons:
             _add(tb, entry)
-        for name in ("home", "front", "right", "top"):
-            a = self.views[name]
-            a.setIconText(name.title())
-            tb.addAction(a)
         return tb
 
 

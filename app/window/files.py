@@ -187,10 +187,53 @@ class FileCommands:
             self.export(path)
 
     def export(self, path: str | Path) -> bool:
+        """Export the deformed model. While a solve runs, wait for it (a progress dialog
+        with Cancel): a mesh in the middle of a solve is never written as the result. What
+        is written is said: the result, or an edit not solved or not converged."""
+        if self.win.is_solving() and not self.wait_for_solve():
+            self.win.statusBar().showMessage(
+                "Export cancelled: the solve was still running; nothing was written.", 8000
+            )
+            return False
+        st = self.doc.state
         try:
-            notes = self.doc.export(path)
+            notes = self.doc.export(path, self.doc.view_nodes())
         except (IsochorError, OSError, ValueError) as exc:
             self.win.error("Cannot export the mesh", str(exc))
             return False
-        self.win.statusBar().showMessage(" ".join([f"Exported {path}.", *notes]), 8000)
+        what = [f"Exported {path}."]
+        if self.doc.preserve and not st.solved:
+            what.append("Not solved: the edit as it stands, its volume not kept.")
+        elif self.doc.preserve and not st.converged:
+            what.append("The solve did not converge: the volume is not within its tolerance.")
+        self.win.statusBar().showMessage(" ".join([*what, *notes]), 8000)
         return True
+
+    def wait_for_solve(self) -> bool:
+        """Wait for the running solve to end, with a progress dialog and Cancel; True when
+        it ended, False when the user cancelled (the solve goes on)."""
+        from PySide6.QtCore import QEventLoop, QTimer
+        from PySide6.QtWidgets import QProgressDialog
+
+        dialog = QProgressDialog(
+            "Waiting for the solve to finish before exporting…", "Cancel", 0, 0, self.win
+        )
+        dialog.setObjectName("exportWait")
+        dialog.setWindowTitle("Export")
+        dialog.setWindowModality(Qt.WindowModality.WindowModal)
+        dialog.setMinimumDuration(0)
+        loop = QEventLoop()
+        poll = QTimer()
+        poll.setInterval(30)
+        poll.timeout.connect(lambda: self.win.is_solving() or loop.quit())
+        cancelled = []
+        dialog.canceled.connect(lambda: cancelled.append(True) or loop.quit())
+        poll.start()
+        dialog.show()
+        loop.exec()
+        poll.stop()
+        ended = not cancelled
+        dialog.canceled.disconnect()
+        dialog.close()
+        dialog.deleteLater()
+        return ended

@@ -30,9 +30,11 @@ from ..editor.document import Document, plural
 from ..session.controller import EditorSession
 from ..view.viewport import Viewport
 from .actions import ActionSet
+from .autosave import AutoSave
 from .files import FileCommands
 from .framedraw import FrameDrawer
 from .handletools import HandleTools
+from .layout import LayoutMemory
 from .panel import Panel, bind
 from .plot import ConvergencePlot
 from .readout import Readout
@@ -69,6 +71,7 @@ class MainWindow(QMainWindow):
         self.resize(1360, 860)
         self.headless_errors = False
         self.closed = False
+        self._keyed = False  # the state shown last had timeline keys
         self.session = EditorSession(document if document is not None else Document.example(), self)
         # a paint outside a frame (Qt's, after a mouse move or an overlay change) holds the
         # solver too, like a frame does (see isochor.app.session.worker)
@@ -90,6 +93,9 @@ class MainWindow(QMainWindow):
         )
         self.action_set.build_toolbar()
         self._connect()
+        self.autosave = AutoSave(self)
+        self.layout_memory = LayoutMemory(self)
+        self.layout_memory.restore()
         self._document_loaded()
         self._status_changed()
 
@@ -129,7 +135,9 @@ class MainWindow(QMainWindow):
         self.inspector_dock = QDockWidget("Inspector", self)
         self.inspector_dock.setObjectName("inspector")
         self.inspector_dock.setWidget(scroll)
-        self.inspector_dock.setFeatures(features.DockWidgetMovable | features.DockWidgetFloatable)
+        self.inspector_dock.setFeatures(
+            features.DockWidgetMovable | features.DockWidgetFloatable | features.DockWidgetClosable
+        )  # every dock can be hidden (View menu) to give the view the room
         self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, self.inspector_dock)
         self.plot_dock = QDockWidget("Convergence", self)
         self.plot_dock.setObjectName("convergence")
@@ -137,8 +145,11 @@ class MainWindow(QMainWindow):
         self.plot_dock.setFeatures(
             features.DockWidgetMovable | features.DockWidgetFloatable | features.DockWidgetClosable
         )
-        self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, self.plot_dock)
-        self.resizeDocks([self.plot_dock], [190], Qt.Orientation.Vertical)
+        # the view first: the convergence plot is a tab behind the Inspector, the timeline
+        # at the bottom appears with the first key (or from View > Timeline)
+        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, self.plot_dock)
+        self.tabifyDockWidget(self.inspector_dock, self.plot_dock)
+        self.inspector_dock.raise_()
         self.timeline_dock = QDockWidget("Timeline", self)
         self.timeline_dock.setObjectName("timeline")
         self.timeline_dock.setWidget(self.timeline.panel)
@@ -146,7 +157,9 @@ class MainWindow(QMainWindow):
             features.DockWidgetMovable | features.DockWidgetFloatable | features.DockWidgetClosable
         )
         self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, self.timeline_dock)
-        self.splitDockWidget(self.plot_dock, self.timeline_dock, Qt.Orientation.Vertical)
+        self.timeline_dock.hide()
+        self.resizeDocks([self.inspector_dock], [scroll.minimumWidth()], Qt.Orientation.Horizontal)
+        self.setCorner(Qt.Corner.BottomRightCorner, Qt.DockWidgetArea.RightDockWidgetArea)
 
     def _connect(self) -> None:
         s, vp, p = self.session, self.viewport, self.panel
@@ -257,6 +270,10 @@ class MainWindow(QMainWindow):
 
     def _state_changed(self) -> None:
         st = self.state
+        keyed = bool(st.timeline.keys)
+        if keyed and not self._keyed:  # the first key, or a document with keys: the timeline
+            self.timeline_dock.show()
+        self._keyed = keyed
         self.readout.show_state()
         self.panel.show_target(st.goal.target_ratio * 100)
         self.handle_tools.show()
@@ -270,6 +287,8 @@ class MainWindow(QMainWindow):
     def show_selection(self) -> None:
         """The Inspector's selection fields, at the nodes as drawn."""
         st = self.state
+        bar = self.inspector_scroll.verticalScrollBar()
+        keep = bar.value()  # the Inspector stays where the user scrolled it
         self.panel.show_selection(
             st.lattice,
             self.doc.selection.rows,
@@ -279,6 +298,8 @@ class MainWindow(QMainWindow):
             step=st.surface.size / 100,
             held=self.readout.held_mask,
         )
+        bar.setValue(keep)
+        QTimer.singleShot(0, lambda: self.closed or bar.setValue(keep))  # after the layout
 
     def _status_changed(self) -> None:
         self.readout.status_changed()
@@ -417,6 +438,8 @@ class MainWindow(QMainWindow):
         if not self.files.confirm_discard():
             ev.ignore()
             return
+        self.autosave.discard()  # a clean quit: nothing to recover
+        self.layout_memory.save()
         self.shutdown()
         super().closeEvent(ev)
 
@@ -426,6 +449,7 @@ class MainWindow(QMainWindow):
         if self.closed:
             return
         self.closed = True
+        self.autosave.stop()
         # nothing may reach this window once it is going away
         self.session.undo_stack.cleanChanged.disconnect(self.update_title)
         self.timeline.shutdown()

@@ -109,6 +109,12 @@ class Readout:
         self.state_label.setText(f'<span style="color:{color}">&#9679;</span> {chip}')
         win.panel.show_solve_state(sentence, color)
         r = win.state.result
+        if win.doc.drag is not None and not win.session.busy():
+            # the last solve's figures belong to the state before the drag: none stay on
+            # screen (a live solve's records fill them in)
+            for label in (self.level_label, self.solver_label, self.time_label):
+                label.setText("")
+            return
         if win.session.busy() or win.doc.drag is not None:
             return  # the progress records say what runs
         if r is None or not win.doc.preserve:

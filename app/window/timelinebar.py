@@ -32,7 +32,9 @@ from .panel import guard_wheel
 TRACK = "#1b1e23"
 TICK = "#5b6370"
 LABEL = "#8b95a5"
-SOLVED = style.HELD  # green: a solved frame
+SOLVED = style.HELD  # green: a converged frame
+UNCONVERGED = style.FOLDED  # red: a frame whose solve did not converge
+PENDING = "#3a404a"  # dim: a frame not solved yet
 KEY = style.SELECTED  # yellow diamonds, as Blender's selected keys
 CURRENT = style.FREE  # blue: the current frame
 #: the scrubber's side margins, so that the first and last frames' marks fit
@@ -58,13 +60,17 @@ class Scrubber(QWidget):
         self.start, self.end, self.current = 0, 24, 0
         self.keys: tuple[int, ...] = ()
         self.solved: frozenset[int] = frozenset()
+        self.unconverged: frozenset[int] = frozenset()  #: solved, not converged
         self.shown = True  #: the current frame's pose is on screen (False: the working edit)
         self._dragging = False
         self.setMinimumHeight(46)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
         self.setCursor(Qt.CursorShape.PointingHandCursor)
         self.setFocusPolicy(Qt.FocusPolicy.ClickFocus)  # then the arrows and Space are its
-        self.setToolTip("Click or drag to go to a frame; diamonds are keys, green frames solved")
+        self.setToolTip(
+            "Click or drag to go to a frame; diamonds are keys. Under each frame: green "
+            "converged, red not converged, grey not solved yet"
+        )
 
     def sizeHint(self) -> QSize:
         return QSize(480, 46)
@@ -79,10 +85,18 @@ class Scrubber(QWidget):
         f = self.start + (x - MARGIN) / max(1.0, self.width() - 2 * MARGIN) * span
         return int(min(max(round(f), self.start), self.end))
 
-    def show_frames(self, start, end, current, keys, solved, shown: bool) -> None:
+    def show_frames(self, start, end, current, keys, solved, shown: bool, unconverged=()) -> None:
         self.start, self.end, self.current = int(start), int(end), int(current)
         self.keys, self.solved, self.shown = tuple(keys), frozenset(solved), shown
+        self.unconverged = frozenset(unconverged)
         self.update()
+
+    def state_of(self, frame: int) -> str:
+        """``"converged"``, ``"not converged"`` or ``"pending"``: what the band under
+        ``frame`` shows."""
+        if frame in self.unconverged:
+            return "not converged"
+        return "converged" if frame in self.solved else "pending"
 
     # -- painting ------------------------------------------------------------------------------
     def paintEvent(self, _ev) -> None:
@@ -91,12 +105,16 @@ class Scrubber(QWidget):
         w, h = self.width(), self.height()
         p.fillRect(QRectF(0, 14, w, h - 14), QColor(TRACK))
         cell = (w - 2 * MARGIN) / max(1, self.end - self.start)
-        # a band under every solved frame
-        band = QColor(SOLVED)
-        for f in self.solved:
-            if self.start <= f <= self.end:
-                x = self.x_of(f)
-                p.fillRect(QRectF(x - cell / 2, h - 7, max(cell, 1.5), 5), band)
+        # a band under every frame: green converged, red (taller) not converged, dim pending
+        bands = {
+            "converged": (QColor(SOLVED), 5),
+            "not converged": (QColor(UNCONVERGED), 8),
+            "pending": (QColor(PENDING), 3),
+        }
+        for f in range(self.start, self.end + 1):
+            colour, tall = bands[self.state_of(f)]
+            x = self.x_of(f)
+            p.fillRect(QRectF(x - cell / 2, h - 2 - tall, max(cell, 1.5), tall), colour)
         # the ruler: a tick per frame when there is room, a number every few frames
         step = next((s for s in STEPS if s * cell >= 36), STEPS[-1])
         p.setPen(QPen(QColor(TICK), 1))
@@ -287,9 +305,12 @@ class TimelinePanel(QWidget):
             tip = action.toolTip() or action.text().replace("&", "")
             button.setToolTip(f"{tip} ({keys})" if keys else tip)
 
-    def show_timeline(self, tl, frame: int, solved, shown: bool, playing: bool) -> None:
+    def show_timeline(
+        self, tl, frame: int, solved, shown: bool, playing: bool, unconverged=()
+    ) -> None:
         """Show the timeline ``tl`` (:class:`~isochor.app.editor.timeline.TimelineState`) at
-        ``frame``; ``solved`` frames; the frame's pose is ``shown`` (never emits)."""
+        ``frame``; ``solved`` frames, of which ``unconverged`` did not converge; the frame's
+        pose is ``shown`` (never emits)."""
         for box, lo, hi, value in (
             (self.frame, tl.start, tl.end, frame),
             (self.start, -MAX_FRAMES, MAX_FRAMES, tl.start),
@@ -306,7 +327,9 @@ class TimelinePanel(QWidget):
         self.interpolation.setCurrentIndex(self.interpolation.findData(tl.interpolation))
         self.interpolation.blockSignals(False)
         self.buttons["play"].setText("❚❚" if playing else "▶")
-        self.scrubber.show_frames(tl.start, tl.end, frame, tl.key_frames, solved, shown)
+        self.scrubber.show_frames(
+            tl.start, tl.end, frame, tl.key_frames, solved, shown, unconverged
+        )
 
     def show_text(self, info: str, progress: str) -> None:
         self.info.setText(info)

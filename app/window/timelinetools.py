@@ -268,12 +268,12 @@ class TimelineTool(QObject):
             if self.shown is not None:
                 win.readout.show_held()  # the working edit's node roles again
             self.shown = None
-        solved = () if self.cache is None else tuple(self.cache.frames)
+        solved, unconverged = frame_states(self.cache)
         showing = self.showing and bool(tl.keys)
         key = tl.key_at(self.frame)
         keyed = key is not None and same_pose(pose_of(st, self.frame), key, st.lattice)
         shown = showing or (keyed and not self.showing)  # the frame's own pose is on screen
-        self.panel.show_timeline(tl, self.frame, solved, shown, self.playing)
+        self.panel.show_timeline(tl, self.frame, solved, shown, self.playing, unconverged)
         info = describe(tl, self.frame, showing, self.solved, keyed)
         self.label.setText(self._short(showing, keyed) if tl.keys else "")
         self.label.setToolTip(info)
@@ -317,3 +317,14 @@ class TimelineTool(QObject):
     def shutdown(self) -> None:
         self.play_timer.stop()
         self.solver.shutdown()
+
+
+def frame_states(cache) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The frames solved (the keys' own solves too) and, of them, those that did not
+    converge; the frames in neither are pending."""
+    if cache is None:
+        return (), ()
+    solved = set(cache.frames) | set(cache.keys)
+    bad = set(cache.unconverged)
+    bad |= {f for f, r in cache.keys.items() if r is not None and not r.converged}
+    return tuple(sorted(solved)), tuple(sorted(bad))

@@ -5,7 +5,7 @@
   scenario key, the API keyword, the command-line option); light, no numpy
 - :mod:`.constraints` the goal's constraints on one pyramid level: total or per-body volume,
   centroid
-- :mod:`.anchor`      no rigid drift: which lattice face to hold while too little is fixed
+- :mod:`.anchor`      the far side stays: which lattice face to hold, from the edit's push
 - :mod:`.handles`     surface handles: points of the model sent to places, as linear
   constraints reduced to what the free nodes can reach (least squares)
 - :mod:`.symmetry`    Mirror: symmetric editing across a lattice mid-plane

@@ -60,9 +60,9 @@ class Goal:
         ``target_volume_ratio`` in a scenario file, ``target`` in the API, ``--target``
     preserve : ``"total"`` (the paper: one volume) or ``"per-body"``
     keep_centroid : also keep the solid's centre of mass where it was
-    anchor : ``"far-side"``: when the fixed nodes leave the lattice free to move rigidly, the
-        lattice face farthest from the moved nodes is held too (no rigid drift); ``"none"``:
-        the paper's behaviour
+    anchor : ``"far-side"``: one lattice face away from the edit is held too (the face a
+        push goes towards, else the farthest; :mod:`isochor.core.goal.anchor`), unless the
+        user fixed the far side; ``"none"``: the paper's behaviour
     fold_guard : penalise a nearly inverted deformation (det J near zero) so that the solver
         does not meet the volume by turning part of the model inside out
     symmetry : ``"x"``, ``"y"`` or ``"z"``: the edit and the result are mirror images across
@@ -90,8 +90,8 @@ class Goal:
         "far-side",
         version=2,
         choices=ANCHORS,
-        help="far-side: while too little is fixed, hold the lattice face away from the "
-        "moved nodes; none: let the lattice drift (the paper)",
+        help="far-side: hold the lattice face the edit pushes towards (or the farthest) "
+        "unless you fixed that side; none: nothing added (the paper)",
     )
     fold_guard: bool = _declare(
         True, version=2, help="penalise folding the model inside out (on by default)"

@@ -38,7 +38,8 @@ before::
       "preserve": "per-body",          or "total" (the default): each body keeps its volume
       "keep_centroid": true,           keep the solid's centre of mass (default false)
       "anchor": "none",                or "far-side" (the default): hold the lattice face
-                                       away from the edit while nothing else holds it
+                                       the edit pushes towards (or the farthest from it)
+                                       unless the far side is fixed by the scenario
       "fold_guard": false              (default true) penalise folding the model
 
 A moved node is fixed at its new place, a pinned node where it rests; all others are free.

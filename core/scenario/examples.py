@@ -5,6 +5,8 @@
 - torus-stretch (Plate 2): 5x2x2 lattice along x; the two outer layers at each end
   (2x2x2 nodes per end) pulled apart and fixed; the 2x2 centre layer free.
 - club-compression (Plate 3): the rounded club in a 5x2x2 lattice; its left end pushed in.
+  Nothing holds its right end, which swells, as in the plate: the scenario asks for the
+  paper's behaviour (``"anchor": "none"``), where the editor's default would hold it.
 - club-bend (Plate 7): the club bent along an arc of 160 degrees, almost a U; all layers
   but the middle one are moved onto the arc and fixed, the middle 2x2 layer is free.
 - cup-squeeze (Sec 1's container "whose capacity is given a priori"): the open cup in a
@@ -57,6 +59,7 @@ def example_scenario(name: str) -> Scenario:
     """The built-in scenario ``name`` (see :data:`EXAMPLES`)."""
     if name not in EXAMPLES:
         raise IsochorError(f"Unknown example {name!r}; the examples are {', '.join(EXAMPLES)}.")
+    goal: dict = {}
     if name == "torus-compression":
         lat = _rest_lattice("torus", (3, 3, 3))
         q = lat.axes[2, 2] / 4
@@ -78,6 +81,7 @@ def example_scenario(name: str) -> Scenario:
             lat, lambda i, j, k: i <= 1, lambda ijk, p: (3 * d if ijk[0] == 0 else d, 0.0, 0.0)
         )
         model = {"builtin": "club"}
+        goal = {"anchor": "none"}  # the plate: the free right end swells
     elif name == "cup-squeeze":
         lat = _rest_lattice("cup", (3, 3, 3))
         d = 0.2 * lat.axes[0, 0] / 2
@@ -110,12 +114,13 @@ def example_scenario(name: str) -> Scenario:
         model = {"builtin": "club"}
     doc = {
         "format": "isochor-scenario",
-        "version": 1,
+        "version": 2 if goal else 1,
         "model": model,
         "lattice": {"nodes": list(lat.shape), "padding": PADDING},
         "moves": moves,
         "pins": [],
         "target_volume_ratio": 1.0,
         "tolerance": {"volume": TOL_VOLUME, "nodes": TOL_NODES},
+        **goal,
     }
     return Scenario.from_dict(doc)

@@ -123,6 +123,7 @@ def solve(
             fixed,
             rows=equations[0] if equations else None,
             points=np.array([h.at for h in handles]).reshape(-1, 3),
+            targets=np.array([h.to for h in handles]).reshape(-1, 3),
             mirror_axis=None if mirror is None else mirror.axis,
         )
     fixed[held] = True

@@ -46,6 +46,35 @@ def pytest_collection_modifyitems(config, items):
                 item.add_marker(pytest.mark.skip(reason=reason))
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _isolated_user_state(tmp_path_factory):
+    """The editor's recovery files and remembered layout go to a folder of the test run's
+    own, never the user's (XDG_STATE_HOME, XDG_CONFIG_HOME)."""
+    keep = {k: os.environ.get(k) for k in ("XDG_STATE_HOME", "XDG_CONFIG_HOME")}
+    os.environ["XDG_STATE_HOME"] = str(tmp_path_factory.mktemp("state"))
+    os.environ["XDG_CONFIG_HOME"] = str(tmp_path_factory.mktemp("config"))
+    yield
+    for k, v in keep.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+
+
+@pytest.fixture(autouse=True)
+def _default_layout():
+    """Each window test starts from the default layout: what an earlier test's window kept
+    (the window saves its layout when it closes) is forgotten."""
+    if _IMPORT_PROBLEM:  # the test is skipped: no Qt to ask
+        yield
+        return
+    from isochor.app.window.layout import settings
+
+    settings().clear()
+    yield
+    settings().clear()
+
+
 @pytest.fixture(scope="session")
 def themed_app(qapp):
     from isochor.app.view import style

@@ -64,6 +64,8 @@ def test_keys_scrub_to_a_solved_in_between_frame_undo_and_redo(qtbot, sphere, tm
     bar = panel.scrubber
     st = win.state
     size, rest_volume = st.surface.size, st.surface.rest_volume
+    assert not win.timeline_dock.isVisible(), "no keys: the view has the room"
+    win.timeline_dock.toggleViewAction().trigger()  # View > Timeline
     assert win.timeline_dock.isVisible() and tool.frame == 0
     assert "no keys yet" in panel.info.text()
 
@@ -228,5 +230,67 @@ def test_a_scenario_with_poses_round_trips_through_the_window(qtbot, themed_app,
     assert win.files.open_path(out)
     assert win.state.timeline == keys and bar.keys == (0, 6, 12)
     assert win.timeline.frame == 0
+    win.undo_stack.setClean()
+    win.close()
+
+
+def test_the_scrubber_shows_each_frames_state_at_a_glance(qtbot, themed_app, tmp_path, monkeypatch):
+    """Converged frames green, a frame that did not converge red (and taller), frames not
+    solved yet dim: read back from the scrubber's pixels (issue 29 item 5)."""
+    import dataclasses
+    import time
+
+    from PySide6.QtGui import QColor
+
+    from isochor.app.editor.document import Document
+    from isochor.app.session import framesolver
+    from isochor.app.window import timelinebar
+
+    solve = framesolver.solve_sequence
+
+    def marked(problem):
+        """The real sequence solve, slowed down, with frame 3's result marked unconverged."""
+        records = solve(problem)
+        try:
+            while True:
+                try:
+                    item = next(records)
+                except StopIteration as stop:
+                    return stop.value
+                if getattr(item, "frame", None) == 3 and not getattr(item, "key", True):
+                    result = dataclasses.replace(item.result, converged=False)
+                    item = dataclasses.replace(item, result=result)
+                time.sleep(0.05)
+                yield item
+        finally:
+            records.close()
+
+    monkeypatch.setattr(framesolver, "solve_sequence", marked)
+    spec = {
+        **SPHERE,
+        "version": 3,
+        "poses": [{"frame": 0}, {"frame": 8, "moves": [{"node": [1, 1, 2], "by": [0, 0, -0.3]}]}],
+        "timeline": {"start": 0, "end": 8},
+    }
+    src = tmp_path / "states.json"
+    src.write_text(json.dumps(spec))
+    win = open_window(qtbot, Document.open(src))
+    bar = win.timeline.panel.scrubber
+
+    def band(frame) -> str:
+        """The colour of the band under ``frame``, as painted."""
+        img = bar.grab().toImage()
+        return QColor(img.pixel(int(bar.x_of(frame)), bar.height() - 4)).name()
+
+    qtbot.waitUntil(lambda: "pending" in {bar.state_of(f) for f in range(9)}, timeout=10_000)
+    pending = max(f for f in range(9) if bar.state_of(f) == "pending")  # not 0, the current
+    assert band(pending) == QColor(timelinebar.PENDING).name()
+    frames_solved(qtbot, win)
+    win.timeline.panel.scrubber.update()
+    assert bar.state_of(3) == "not converged"
+    assert [bar.state_of(f) for f in (0, 2, 4, 8)] == ["converged"] * 4
+    assert band(3) == QColor(timelinebar.UNCONVERGED).name()
+    assert band(2) == band(4) == QColor(timelinebar.SOLVED).name()
+    save_shot(win, "timeline_states")
     win.undo_stack.setClean()
     win.close()
