@@ -209,7 +209,9 @@ def solve(
     # result never depends on what was solved before.
     margin = guard.margin if goal.fold_guard else None
     curvatures = surface.shared(
-        ("curvatures", coords.key, margin), lambda: Curvatures(hessian, coords), reuse=near
+        ("curvatures", coords.key, margin),
+        lambda: Curvatures(hessian, coords, lattice.shape),
+        reuse=near,
     )
 
     lam, sigma = np.zeros(first.count), opts.sigma0

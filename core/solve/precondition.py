@@ -27,8 +27,9 @@ it, ``A^-1`` is applied by two triangular solves a step and never formed: the in
 2700 variables (a 10x10x10 lattice) costs 0.8 s, the solves 3 ms a step. A dense lattice
 of a local basis (thousands of nodes) hands over sparse matrices
 (:data:`core.springs.SPARSE_VARIABLES`): ``A`` is then factored by SciPy's sparse LU
-(SuperLU, no pivoting on the symmetric positive definite matrix, a fill-reducing
-ordering), each step two sparse triangular solves. Up to
+(SuperLU in single precision, no pivoting on the symmetric positive definite matrix,
+in the nested-dissection order of the lattice's grid, :func:`dissection`), each step two
+sparse triangular solves. Up to
 :data:`core.kernels.step.SMALL_INVERSE` variables ``A^-1`` is one compiled call (SciPy's
 wrappers cost more than the arithmetic there), and with one constraint (the volume alone)
 the Woodbury term is a scalar.
@@ -65,6 +66,27 @@ class Product:
         return self.matrix @ v
 
 
+def dissection(shape: tuple[int, int, int]) -> np.ndarray:
+    """(nodes,) the nodes of a lattice in nested-dissection order: the grid is cut at the
+    middle plane of its longest side, the two halves come first (each cut the same way) and
+    the plane last. Factoring a lattice's curvature in this order fills in far less than
+    SuperLU's own orderings (16x16x16: 7.7M entries against 9.9M, and faster)."""
+    out: list[np.ndarray] = []
+
+    def cut(block: np.ndarray) -> None:
+        if block.size <= 8:
+            out.append(block.ravel())
+            return
+        axis = int(np.argmax(block.shape))
+        c = block.shape[axis] // 2
+        cut(np.take(block, range(c), axis=axis))
+        cut(np.take(block, range(c + 1, block.shape[axis]), axis=axis))
+        out.append(np.take(block, [c], axis=axis).ravel())
+
+    cut(np.arange(int(np.prod(shape))).reshape(shape))
+    return np.concatenate(out)
+
+
 class Curvature:
     """``A = H + ridge``, factored once; :meth:`solve` applies ``A^-1``.
 
@@ -73,12 +95,15 @@ class Curvature:
     hessian : (count, count) the energy's Hessian over the variables (the node-coordinate
         Hessian restricted by :meth:`isochor.core.solve.solver.Coordinates.restrict`), in the
         solver's units (energy / size^2 per (coordinate / size)^2)
+    order : (count,) the order to factor a sparse ``hessian`` in (a permutation of the
+        variables: :func:`dissection` of the lattice); None: SuperLU's own
     """
 
-    def __init__(self, hessian) -> None:
+    def __init__(self, hessian, order: np.ndarray | None = None) -> None:
         self._factor, self.inverse, self._sparse = None, None, None
+        self._order = None
         if sp.issparse(hessian):
-            self._sparse_factor(hessian)
+            self._sparse_factor(hessian, order)
             return
         a = np.array(hessian, dtype=np.float64)
         self.count = len(a)
@@ -99,19 +124,25 @@ class Curvature:
         if self.count <= EXPLICIT:
             self.inverse = la.cho_solve(factor, np.eye(self.count), check_finite=False)
 
-    def _sparse_factor(self, hessian) -> None:
+    def _sparse_factor(self, hessian, order: np.ndarray | None) -> None:
         """The sparse path (see the module): SuperLU of ``A``, kept when it is positive
         definite (every pivot positive, no pivoting)."""
-        a = sp.csc_matrix(hessian, dtype=np.float64)
+        a = sp.csr_matrix(hessian, dtype=np.float64)
         self.count = a.shape[0]
         ridge = RIDGE * max(float(a.diagonal().sum()) / max(self.count, 1), 1e-12)
-        a = (a + ridge * sp.identity(self.count, format="csc")).tocsc()
+        a = a + ridge * sp.identity(self.count, format="csr")
+        if order is not None and len(order) == self.count:
+            self._order = np.asarray(order, dtype=np.int64)
+            a = a[self._order][:, self._order]
+        # single precision: the factor only preconditions (the L-BFGS pairs correct it),
+        # and SuperLU factors and solves about 1.5x faster in it
+        a = sp.csc_matrix(a, dtype=np.float32)
         if not _finite(a.data):
             return
         try:
             lu = spla.splu(
                 a,
-                permc_spec="MMD_AT_PLUS_A",
+                permc_spec="MMD_AT_PLUS_A" if self._order is None else "NATURAL",
                 diag_pivot_thresh=0.0,
                 options={"SymmetricMode": True},
             )
@@ -122,6 +153,11 @@ class Curvature:
             self._sparse = lu
 
     @property
+    def sparse(self) -> bool:
+        """Whether ``A`` was factored as a sparse matrix."""
+        return self._sparse is not None
+
+    @property
     def ok(self) -> bool:
         """``A`` is positive definite (with finite numbers)."""
         return self._factor is not None or self.inverse is not None or self._sparse is not None
@@ -129,7 +165,12 @@ class Curvature:
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^-1 b`` for ``b`` (count,) or (count, k)."""
         if self._sparse is not None:
-            return self._sparse.solve(np.asarray(b, dtype=np.float64))
+            b = np.asarray(b, dtype=np.float64)
+            if self._order is None:
+                return self._sparse.solve(b.astype(np.float32)).astype(np.float64)
+            out = np.empty_like(b)
+            out[self._order] = self._sparse.solve(b[self._order].astype(np.float32))
+            return out
         if self.inverse is not None:
             return self.inverse @ b
         if b.ndim == 1 and b.dtype == np.float64:
