@@ -246,7 +246,7 @@ class MainWindow(QMainWindow):
             reset_camera=reset_camera,
         )
         self.display_changed()
-        self.panel.show_shape(st.lattice.shape)
+        self.panel.show_shape(st.lattice.shape, st.lattice.basis)
 
     def _state_changed(self) -> None:
         st = self.state
@@ -329,7 +329,8 @@ class MainWindow(QMainWindow):
 
     def rebuild_lattice(self, shape) -> None:
         try:
-            self.commit_edit(latticerules.edit_lattice(self.doc.base(), shape))
+            basis = self.panel.basis_name()
+            self.commit_edit(latticerules.edit_lattice(self.doc.base(), shape, basis))
         except IsochorError as exc:
             self.error("Cannot rebuild the lattice", str(exc))
 
