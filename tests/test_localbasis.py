@@ -472,3 +472,26 @@ def test_surface_levels_with_a_local_basis_evaluate_as_the_lattice_deforms():
     full = surface.level(len(surface.levels) - 1)
     want = lattice.deform(mesh.vertices, nodes)
     assert np.allclose(full.basis.apply(nodes), want, atol=1e-14)
+
+
+def test_a_live_frame_on_a_dense_local_lattice_moves_the_nodes_near_the_drag_only():
+    from isochor.core.solve.multilevel import LIVE_REACH
+
+    problem, nodes, fixed = _dense_problem((11, 10, 10))
+    _, start = run(solve(problem.surface, nodes, fixed))
+    lattice = problem.surface.lattice
+    top = lattice.index(5, 5, 9)
+    x = np.array(start.nodes)
+    x[top] += 0.01 * lattice.size
+    _, frame = run(solve(problem.surface, x, fixed, live=True))
+    assert frame.converged and frame.preview
+    assert abs(frame.rel_volume_error) <= problem.options.tol_volume
+    moved = np.abs(frame.nodes - x).max(axis=1) > 0
+    ijk = np.indices(lattice.shape).reshape(3, -1).T
+    reach = np.abs(ijk - ijk[top]).max(axis=1)
+    assert moved.any() and reach[moved].max() <= LIVE_REACH
+    # the solve when the drag ends moves the others too
+    _, release = run(solve(problem.surface, np.array(frame.nodes), fixed, near=True))
+    assert release.converged
+    far = np.abs(release.nodes - frame.nodes).max(axis=1) > 0
+    assert reach[far].max() > LIVE_REACH

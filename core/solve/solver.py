@@ -113,7 +113,8 @@ class Curvatures:
         far = CURVATURE_MOVE if taken is None or not taken[1].sparse else SPARSE_CURVATURE_MOVE
         if taken is None or np.abs(y - taken[0]).max() > far:
             h = self.coords.restrict(self.hessian(nodes()))
-            taken = (np.array(y), Curvature(h, self._order if sp.issparse(h) else None))
+            curvature = Curvature(h, self._order) if sp.issparse(h) else Curvature(h)
+            taken = (np.array(y), curvature)
             self._taken = taken
         return taken[1]
 
