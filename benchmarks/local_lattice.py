@@ -2,7 +2,9 @@
 346k armadillo, its bottom layer pinned, one top node dragged.
 
 Rows (in the Display rate section, :mod:`benchmarks.display`; alone with
-``python -m benchmarks.local_lattice [--repeats N]``):
+``OPENBLAS_NUM_THREADS=1 python -m benchmarks.local_lattice [--repeats N]``, BLAS on one
+thread as ``python -m benchmarks`` runs it: a threaded BLAS wakes its threads for every
+small product, which on a busy machine multiplies a drag frame's time):
 
 * one solve: the top node moved up by a tenth of the lattice size, solved from rest; the
   first solve on the freshly built problem (it also finds the fold guard's samples and

@@ -5,6 +5,7 @@ solves on dense B-spline lattices."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -495,3 +496,22 @@ def test_a_live_frame_on_a_dense_local_lattice_moves_the_nodes_near_the_drag_onl
     assert release.converged
     far = np.abs(release.nodes - frame.nodes).max(axis=1) > 0
     assert reach[far].max() > LIVE_REACH
+
+
+def test_the_command_line_solves_on_another_basis_and_names_a_bad_one(tmp_path, capsys):
+    from isochor.app.cli.main import main
+
+    report = tmp_path / "report.json"
+    out = tmp_path / "out.ply"
+    args = ["solve", "--example", "torus-compression", "-q", "--report", str(report)]
+    assert main([*args, "--basis", "bspline", "--out", str(out)]) == 0
+    doc = json.loads(report.read_text())
+    assert doc["lattice_basis"] == ["bspline"] * 3 and doc["converged"]
+    assert out.stat().st_size > 0
+    report.unlink()
+    out.unlink()
+    capsys.readouterr()
+    assert main([*args, "--basis", "bspline,nurbs,linear", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--basis bspline,nurbs,linear: Unknown lattice basis 'nurbs'" in err[0]
+    assert not report.exists() and not out.exists()  # nothing written
