@@ -17,6 +17,7 @@ small product, which on a busy machine multiplies a drag frame's time):
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -34,6 +35,13 @@ from isochor.core.solve.generators import run_to_end
 NODES = 16
 SOLVE_TARGET = 2.0  # seconds, one solve
 FRAME_TARGET = 33.0  # ms, a live drag frame
+
+
+def _load() -> float:
+    try:
+        return os.getloadavg()[0]
+    except OSError:  # not on this platform
+        return float("nan")
 
 
 def bspline_problem(problem, n: int = NODES):
@@ -86,7 +94,11 @@ def local_rows(problem, repeats: int, row_type) -> list:
     frame_ok = d.frames_ok and d.frames.median * 1e3 <= FRAME_TARGET
     why = f"solved on {where}" if d.frames_ok else "a frame missed the volume on its level"
     if d.frames_ok and not frame_ok:
-        why += ": slower than the target"
+        why += (
+            f": slower than the target; the fastest frame {d.frames.lo * 1e3:.1f} ms, the "
+            f"machine's load average {_load():.1f} on {os.cpu_count()} CPUs (a frame takes "
+            "the same 3-5 steps each time: its time is the machine's)"
+        )
     if kernels.active():
         with kernels.numpy_path():
             slow = dc.drag(dense, max(1, repeats // 2))
