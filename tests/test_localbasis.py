@@ -117,7 +117,9 @@ def blender_deform(kinds, counts, matrix, points_world, nodes_world, outside=Fal
 
 def _to_blender_order(lattice: Lattice, nodes: np.ndarray) -> np.ndarray:
     """Isochor's node rows (i slowest) in Blender's point order (u fastest)."""
-    return nodes.reshape(*lattice.shape, 3).transpose(2, 1, 0, 3).reshape(-1, 3)
+    out = nodes.reshape(*lattice.shape, 3).transpose(2, 1, 0, 3).reshape(-1, 3)
+    assert np.array_equal(out, nodes[lb.blender_order(lattice.shape)])
+    return out
 
 
 def _frame(rng):
@@ -144,7 +146,8 @@ def _frame(rng):
 def test_the_basis_is_blenders_lattice_modifier(kinds, counts):
     rng = np.random.default_rng(sum(counts))
     origin, axes, matrix = _frame(rng)
-    lattice = Lattice(counts, origin, axes, kinds)
+    lattice = Lattice(counts, *lb.blender_frame(matrix), kinds)
+    assert np.allclose(lattice.origin, origin) and np.allclose(lattice.axes, axes)
     # inside, on the faces, and outside the box (near and far)
     uvw = np.vstack(
         [rng.uniform(0, 1, (40, 3)), rng.uniform(-0.4, 1.4, (40, 3)), rng.uniform(-6, 7, (10, 3))]
@@ -261,6 +264,9 @@ def test_one_node_axes_and_node_count_limits():
     with pytest.raises(IsochorError, match="Unknown lattice basis"):
         Lattice((3, 3, 3), (0, 0, 0), np.eye(3), "nurbs")
     assert Lattice((3, 3, 3), (0, 0, 0), np.eye(3), "B-Spline").basis == ("bspline",) * 3
+    # Blender's frame of a lattice with one point along v: the unit extent, centred on it
+    origin, axes = lb.blender_frame(np.eye(4), (-0.5, 0.0, -1.5), (0.5, 0.0, 1.5))
+    assert np.allclose(origin, [-0.5, -0.5, -1.5]) and np.allclose(axes, np.diag([1, 1, 3]))
 
 
 # -- derivatives -----------------------------------------------------------------------------
