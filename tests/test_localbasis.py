@@ -372,6 +372,7 @@ def test_compiled_kernels_agree_with_the_numpy_path():
 
 
 def test_sparse_springs_hessian_and_curvature_equal_the_dense_ones(monkeypatch):
+    import isochor.core.solve.precondition as precondition
     import isochor.core.springs as springs_module
 
     lattice = Lattice((5, 4, 3), (0, 0, 0), np.eye(3), "bspline")
@@ -393,6 +394,19 @@ def test_sparse_springs_hessian_and_curvature_equal_the_dense_ones(monkeypatch):
     assert np.linalg.norm(sparse_c.solve(b) - want) <= 1e-3 * np.linalg.norm(want)
     order = dissection((5, 4, 3))
     assert sorted(order) == list(range(60))
+    # whole nodes: the blocks' third of the trace, exact where the blocks are isotropic
+    monkeypatch.setattr(precondition, "NODE_FACTOR", 10)
+    graph = sp.csr_matrix(net.hessian(x)[0::3, 0::3] + np.eye(lattice.n_nodes))
+    iso = sp.kron(graph, sp.identity(3), format="csr")
+    nodes_order = np.repeat(3 * order, 3) + np.tile(np.arange(3), len(order))
+    node_c = Curvature(iso, nodes_order, whole_nodes=True)
+    b = rng.standard_normal((3 * lattice.n_nodes, 2))
+    want = np.linalg.solve(iso.toarray(), b)
+    assert node_c.sparse and np.linalg.norm(node_c.solve(b) - want) <= 1e-4 * np.linalg.norm(want)
+    # on the springs' anisotropic blocks it is an approximation, still positive definite
+    approx = Curvature(sp.csr_matrix(dense + 1e-3 * np.eye(len(dense))), None, whole_nodes=True)
+    v = rng.standard_normal(len(dense))
+    assert approx.sparse and float(v @ approx.solve(v)) > 0
 
 
 # -- the scenario ----------------------------------------------------------------------------

@@ -51,6 +51,10 @@ from ..kernels import step as stepkernels
 RIDGE = 1e-6
 #: up to this many variables the inverses are explicit matrices (see the module notes)
 EXPLICIT = 400
+#: above this many variables (whole nodes) a sparse curvature is factored on the nodes
+#: (:meth:`Curvature._node_factor`); below it exactly, which saves steps where a factor is
+#: cheap (a live frame's 1215 variables: 3 steps against 8)
+NODE_FACTOR = 6000
 
 
 class Product:
@@ -97,13 +101,19 @@ class Curvature:
         solver's units (energy / size^2 per (coordinate / size)^2)
     order : (count,) the order to factor a sparse ``hessian`` in (a permutation of the
         variables: :func:`dissection` of the lattice); None: SuperLU's own
+    whole_nodes : the variables are whole nodes, x, y, z of each in a row: a sparse
+        ``hessian`` of more than :data:`NODE_FACTOR` of them is then factored on the nodes
+        alone (:meth:`_node_factor`)
     """
 
-    def __init__(self, hessian, order: np.ndarray | None = None) -> None:
+    def __init__(self, hessian, order: np.ndarray | None = None, whole_nodes=False) -> None:
         self._factor, self.inverse, self._sparse = None, None, None
-        self._order = None
+        self._order, self._nodes = None, False
         if sp.issparse(hessian):
-            self._sparse_factor(hessian, order)
+            if whole_nodes and hessian.shape[0] % 3 == 0 and hessian.shape[0] > NODE_FACTOR:
+                self._node_factor(hessian, order)
+            else:
+                self._sparse_factor(hessian, order)
             return
         a = np.array(hessian, dtype=np.float64)
         self.count = len(a)
@@ -136,6 +146,33 @@ class Curvature:
             a = a[self._order][:, self._order]
         # single precision: the factor only preconditions (the L-BFGS pairs correct it),
         # and SuperLU factors and solves about 1.5x faster in it
+        self._lu(a)
+
+    def _node_factor(self, hessian, order: np.ndarray | None) -> None:
+        """The sparse path on whole nodes: ``A``'s 3x3 blocks replaced by a third of their
+        trace (positive semi-definite as ``A`` is: a weighted graph of the nodes), one
+        factor for the three coordinates. Three times fewer unknowns: the factorisation
+        of a 16x16x16 lattice is many times cheaper; the L-BFGS pairs learn the
+        directions it leaves out (a dense lattice's solve takes about 3x the steps, each
+        cheaper, and ends 25% sooner)."""
+        a = sp.coo_matrix(hessian, dtype=np.float64)
+        self.count = a.shape[0]
+        n = self.count // 3
+        same = a.row % 3 == a.col % 3
+        nodes = sp.csr_matrix(
+            (a.data[same] / 3.0, (a.row[same] // 3, a.col[same] // 3)), shape=(n, n)
+        )
+        ridge = RIDGE * max(float(nodes.diagonal().sum()) / max(n, 1), 1e-12)
+        nodes = nodes + ridge * sp.identity(n, format="csr")
+        if order is not None and len(order) == self.count:
+            self._order = np.asarray(order[::3] // 3, dtype=np.int64)
+            nodes = nodes[self._order][:, self._order]
+        self._nodes = True
+        self._lu(nodes)
+
+    def _lu(self, a) -> None:
+        """SuperLU of the (ordered) matrix ``a`` in single precision, kept when every pivot
+        is positive."""
         a = sp.csc_matrix(a, dtype=np.float32)
         if not _finite(a.data):
             return
@@ -164,6 +201,15 @@ class Curvature:
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^-1 b`` for ``b`` (count,) or (count, k)."""
+        if self._sparse is not None and self._nodes:  # x, y, z (and columns) side by side
+            b = np.asarray(b, dtype=np.float64)
+            rows = b.reshape(self.count // 3, -1)
+            out = np.empty_like(rows)
+            if self._order is None:
+                out[:] = self._sparse.solve(rows.astype(np.float32))
+            else:
+                out[self._order] = self._sparse.solve(rows[self._order].astype(np.float32))
+            return out.reshape(b.shape)
         if self._sparse is not None:
             b = np.asarray(b, dtype=np.float64)
             if self._order is None:

@@ -113,7 +113,10 @@ class Curvatures:
         far = CURVATURE_MOVE if taken is None or not taken[1].sparse else SPARSE_CURVATURE_MOVE
         if taken is None or np.abs(y - taken[0]).max() > far:
             h = self.coords.restrict(self.hessian(nodes()))
-            curvature = Curvature(h, self._order) if sp.issparse(h) else Curvature(h)
+            if sp.issparse(h):
+                curvature = Curvature(h, self._order, self.coords.whole_nodes)
+            else:
+                curvature = Curvature(h)
             taken = (np.array(y), curvature)
             self._taken = taken
         return taken[1]
@@ -191,6 +194,15 @@ class Coordinates:
         if len(self.dst):
             return np.asarray(self.matrix @ (self.matrix @ h).T)
         return h.take(self._columns, axis=0).take(self._columns, axis=1)
+
+    @cached_property
+    def whole_nodes(self) -> bool:
+        """Whether the variables are whole nodes (x, y, z of each, in a row) with no ties."""
+        cols = self._columns
+        if len(self.dst) or len(cols) % 3:
+            return False
+        triples = cols.reshape(-1, 3)
+        return bool(np.all(triples[:, 0] % 3 == 0) and np.all(np.diff(triples, axis=1) == 1))
 
     def ordered(self, node_order: np.ndarray) -> np.ndarray:
         """(count,) the variables sorted by their node's place in ``node_order`` (a
