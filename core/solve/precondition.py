@@ -29,7 +29,9 @@ of a local basis (thousands of nodes) hands over sparse matrices
 (:data:`core.springs.SPARSE_VARIABLES`): ``A`` is then factored by SciPy's sparse LU
 (SuperLU in single precision, no pivoting on the symmetric positive definite matrix,
 in the nested-dissection order of the lattice's grid, :func:`dissection`), each step two
-sparse triangular solves. Up to
+sparse triangular solves; above :data:`NODE_FACTOR` variables on the nodes alone (each
+3x3 block by a third of its trace: three times fewer unknowns, a far cheaper factor, more
+but cheaper steps). Up to
 :data:`core.kernels.step.SMALL_INVERSE` variables ``A^-1`` is one compiled call (SciPy's
 wrappers cost more than the arithmetic there), and with one constraint (the volume alone)
 the Woodbury term is a scalar.
