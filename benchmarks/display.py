@@ -18,6 +18,8 @@ Rows (measurements in :mod:`benchmarks.drag_cases`, the window's in :mod:`benchm
 * one volume + gradient evaluation on about a million triangles with 27 and 125 nodes;
 * a dense 8x8x8 lattice on the 346k armadillo, bottom layer pinned, a top corner dragged
   (one solve), and a drag's frames on it;
+* a 16x16x16 B-spline lattice (Blender's) on the 346k armadillo, bottom layer pinned, a top
+  node dragged: one solve, a drag's frames (:mod:`benchmarks.local_lattice`);
 * the window: redraws per second while dragging the 346k armadillo, the longest stalls,
   the release's result at the proxy, and opening, rebuilding and quitting on it
   (:mod:`benchmarks.opening`).
@@ -32,6 +34,7 @@ from pathlib import Path
 from benchmarks import drag_cases as dc
 from benchmarks.cases import Case
 from benchmarks.first_evaluation import first_evaluation
+from benchmarks.local_lattice import local_rows
 from benchmarks.scale import ARMADILLO, SCALE_TORI, scale_row
 from benchmarks.tables import table1_row
 from benchmarks.timing import Timing, kernel_status
@@ -193,6 +196,7 @@ def run_display(models: Path, repeats: int) -> tuple[list[Row], list[str]]:
         what = "dense 8x8x8 lattice, armadillo 346k, corner drag (1 run)"
         rows.append(Row(what, Timing((t,)), "converged, <= 5000 ms", converged and t <= 5, why))
         rows += _drag_rows("8x8x8 lattice, armadillo 346k", dc.dense_problem(problem), repeats)
+        rows += local_rows(problem, repeats, Row)  # issue 26: Blender's B-spline lattice
         del problem
         loads = []
         for _ in range(2):

@@ -402,23 +402,17 @@ class Lattice:
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         l, m, n = self.shape
         to_world = np.linalg.inv(self.axes).T  # d(u, v, w) / dx, transposed
+        out = np.empty((len(points), 3, 3))
         if self.local:
             uvw_t = np.ascontiguousarray(self.to_parameters(points).T)
             d = self.displacements(nodes)
-            return (
-                np.concatenate(
-                    [
-                        lb.world_jacobians(
-                            self.basis, self.shape, uvw_t[:, s : s + BASIS_BLOCK], d, to_world
-                        )
-                        for s in range(0, len(points), BASIS_BLOCK)
-                    ]
+            for s in range(0, len(points), BASIS_BLOCK):
+                block = uvw_t[:, s : s + BASIS_BLOCK]
+                out[s : s + BASIS_BLOCK] = lb.world_jacobians(
+                    self.basis, self.shape, block, d, to_world
                 )
-                if len(points)
-                else np.zeros((0, 3, 3))
-            )
+            return out
         grid = np.asarray(nodes, dtype=np.float64).reshape(l, m, n, 3)
-        out = np.empty((len(points), 3, 3))
         for s in range(0, len(points), BASIS_BLOCK):
             uvw = self.to_parameters(points[s : s + BASIS_BLOCK])
             b = [bernstein(d - 1, uvw[:, c]) for c, d in enumerate(self.shape)]

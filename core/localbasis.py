@@ -191,6 +191,28 @@ def outside_matrix(shape: tuple[int, int, int]) -> sp.csr_matrix:
     )
 
 
+def blender_order(shape: tuple[int, int, int]) -> np.ndarray:
+    """(nodes,) Isochor's node rows in Blender's point order: ``nodes[blender_order(shape)]``
+    lists the points as Blender's lattice does (u fastest: ``(w * pntsv + v) * pntsu + u``),
+    and ``nodes[blender_order(shape)] = points`` reads them back."""
+    return np.arange(int(np.prod(shape))).reshape(shape).transpose(2, 1, 0).ravel()
+
+
+def blender_frame(matrix, low=(-0.5, -0.5, -0.5), high=(0.5, 0.5, 0.5)):
+    """``(origin, axes)``: Isochor's lattice frame for a Blender lattice object whose
+    ``object_to_world`` is ``matrix`` (4x4) and whose rest points span ``low .. high`` in
+    its lattice space (-0.5 .. 0.5, Blender's ``fu`` to ``fu + (pnts - 1) du``, once the
+    lattice was resized with its object; an axis with one point keeps the unit extent).
+    World positions of the nodes then equal ``matrix`` applied to Blender's points."""
+    m = np.asarray(matrix, dtype=np.float64).reshape(4, 4)
+    low, high = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
+    flat = high - low == 0
+    low, high = np.where(flat, low - 0.5, low), np.where(flat, high + 0.5, high)
+    origin = m[:3, :3] @ low + m[:3, 3]
+    axes = (m[:3, :3] * (high - low)).T  # rows: the edge vectors along u, v, w
+    return origin, axes
+
+
 class LocalPointBasis:
     """The local basis of a fixed point set: ``apply(X) = points + W (T X - T R)``.
 

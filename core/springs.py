@@ -144,8 +144,9 @@ class SpringNetwork:
         n = 3 * self.n_nodes
         weights = np.repeat(np.concatenate([block, -block]).ravel(), 2)
         if big:
-            rows, cols = np.divmod(self._hessian_cells, n)
-            return sp.csr_matrix((weights, (rows, cols)), shape=(n, n))
+            indptr, indices, inverse = self._sparse_pattern
+            data = np.bincount(inverse, weights, len(indices))
+            return sp.csr_matrix((data, indices, indptr), shape=(n, n))
         flat = np.bincount(self._hessian_cells, weights, n * n)
         return flat.reshape(n, n)
 
@@ -153,6 +154,17 @@ class SpringNetwork:
     def _compiled(self) -> tuple:
         """The springs as the compiled kernels take them (:func:`core.kernels.step.springs`)."""
         return self._starts, self._ends, self.rest_lengths, self.stiffness
+
+    @cached_property
+    def _sparse_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The sparse Hessian's CSR pattern (indptr, indices) and, for each entry of
+        :attr:`_hessian_cells`, the place of its cell among the pattern's: the pattern is
+        the same at every call, so a call only sums the weights into it."""
+        n = 3 * self.n_nodes
+        cells, inverse = np.unique(self._hessian_cells, return_inverse=True)
+        rows, cols = np.divmod(cells, n)
+        indptr = np.searchsorted(rows, np.arange(n + 1)).astype(np.int64)
+        return indptr, cols.astype(np.int64), inverse.ravel()
 
     @cached_property
     def _hessian_cells(self) -> np.ndarray:

@@ -211,6 +211,13 @@ def _parser() -> argparse.ArgumentParser:
         metavar="PATTERN",
         help="solve the scenario's poses: one file per frame (frame_####.obj) or one animated .glb",
     )
+    solve.add_argument(
+        "--basis",
+        metavar="NAME",
+        help="the lattice's basis, overriding the scenario's: bernstein (the paper's), or "
+        "Blender's bspline, catmull-rom, cardinal, linear; one name or three comma-separated "
+        "(one per axis)",
+    )
     goal = solve.add_argument_group("what the solve holds (each overrides the scenario's)")
     for f in GOAL_FIELDS:  # one option per field of the goal, as it declares it
         if f.kind is bool:
@@ -268,6 +275,8 @@ def _solve(args: argparse.Namespace) -> int:
         scenario, source = Scenario.read(args.scenario), str(args.scenario)
         inputs = [(args.scenario, "the scenario")]
     scenario = scenario.with_(goal=_goal(scenario.goal, args))
+    if args.basis is not None:
+        scenario = _basis(scenario, args.basis)
     if "path" in scenario.model:
         inputs.append((scenario.model_path(), "the model"))
     if args.sequence is not None:
@@ -326,6 +335,17 @@ def _solve(args: argparse.Namespace) -> int:
         print(f"isochor: {what}{result.message}", file=sys.stderr)
         return EXIT_NOT_CONVERGED
     return EXIT_OK
+
+
+def _basis(scenario, text: str):
+    """``scenario`` with the lattice basis of ``--basis`` (one name or three, comma-separated),
+    checked as the scenario's ``lattice.basis`` is."""
+    names = [n.strip() for n in text.split(",")] if "," in text else text.strip()
+    try:
+        return scenario.checked({"lattice_basis": names})
+    except IsochorError as exc:
+        message = str(exc).removeprefix("lattice.basis: ")
+        raise IsochorError(f"--basis {text}: {message}") from None
 
 
 def _goal(goal: Goal, args: argparse.Namespace) -> Goal:

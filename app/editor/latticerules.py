@@ -14,28 +14,40 @@ from dataclasses import replace
 import numpy as np
 
 from ...core.errors import IsochorError
-from ...core.lattice import MAX_NODES, MIN_NODES
+from ...core.lattice import MAX_NODES, MIN_NODES, basis_names
+from ...core.localbasis import BERNSTEIN, MAX_LOCAL, MIN_LOCAL
 from ...core.scenario.problem import build
 from .edit import Edit, EditBase
 from .state import DocState, plural
 
 
-def edit_lattice(base: EditBase, shape) -> Edit | None:
-    """A new lattice of ``shape`` nodes around the same model, at rest.
+def edit_lattice(base: EditBase, shape, basis=None) -> Edit | None:
+    """A new lattice of ``shape`` nodes around the same model, at rest; ``basis`` (one name
+    or three, :data:`isochor.core.localbasis.NAMES`) changes its basis too (None keeps it).
 
     Moves, pins and the timeline's keys are dropped (they name nodes of the old lattice);
     the model pyramid is reused, and so is a problem built before for the same shape, with
     its caches.
     """
     shape = tuple(int(s) for s in shape)
-    if len(shape) != 3 or not all(MIN_NODES <= s <= MAX_NODES for s in shape):
-        raise IsochorError(f"A lattice has {MIN_NODES} to {MAX_NODES} nodes per axis.")
     st = base.state
-    if shape == tuple(st.lattice.shape):
+    basis = st.lattice.basis if basis is None else basis_names(basis)
+    local = basis[0] != BERNSTEIN
+    low, high = (MIN_LOCAL, MAX_LOCAL) if local else (MIN_NODES, MAX_NODES)
+    if len(shape) != 3 or not all(low <= s <= high for s in shape):
+        which = "a local basis" if local else "the Bernstein basis"
+        raise IsochorError(f"A lattice with {which} has {low} to {high} nodes per axis.")
+    if shape == tuple(st.lattice.shape) and basis == st.lattice.basis:
         return None
     old = st.problem
     scenario = old.scenario.with_(
-        lattice_nodes=shape, moves=(), pins=(), axis_pins=(), timeline=None
+        lattice_nodes=shape,
+        lattice_basis=basis,
+        lattice_outside=st.lattice.outside and local,
+        moves=(),
+        pins=(),
+        axis_pins=(),
+        timeline=None,
     )
     if base.problems is None:
         problem = build(scenario, model=old.model)
@@ -56,4 +68,5 @@ def edit_lattice(base: EditBase, shape) -> Edit | None:
     )
     keys = len(st.timeline.keys)
     dropped = f", {plural(keys, 'key')} dropped" if keys else ""
-    return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape) + dropped)
+    named = "" if not local else f" ({'/'.join(dict.fromkeys(basis))})"
+    return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape) + named + dropped)

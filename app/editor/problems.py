@@ -13,8 +13,15 @@ from ...core.scenario.problem import Problem, build
 
 
 def lattice_key(scenario: Scenario) -> tuple:
-    """What tells two lattices around the same model apart: shape, padding and frame."""
-    return (tuple(scenario.lattice_nodes), scenario.padding, scenario.frame)
+    """What tells two lattices around the same model apart: shape, basis, padding and
+    frame."""
+    return (
+        tuple(scenario.lattice_nodes),
+        tuple(scenario.lattice_basis),
+        scenario.lattice_outside,
+        scenario.padding,
+        scenario.frame,
+    )
 
 
 class ProblemCache:

@@ -9,6 +9,7 @@ from PySide6.QtCore import QEvent, QObject, Qt, Signal
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import (
     QCheckBox,
+    QComboBox,
     QDoubleSpinBox,
     QFormLayout,
     QGridLayout,
@@ -23,6 +24,7 @@ from PySide6.QtWidgets import (
 
 from ...core.goal.spec import RATIO_RANGE
 from ...core.lattice import MAX_NODES, MIN_NODES
+from ...core.localbasis import BERNSTEIN, KINDS, MAX_LOCAL, MIN_LOCAL
 from ..editor.state import axes_words
 from ..view import style
 from .goalbox import GoalBox
@@ -181,15 +183,27 @@ class Panel(QWidget):
             s.setPrefix(f"{name}  ")
             lgrid.addWidget(s, 0, i)
             self.shape.append(s)
+        self.basis = QComboBox()
+        guard_wheel(self.basis)
+        for name, label in BASIS_LABELS.items():
+            self.basis.addItem(label, name)
+        self.basis.setToolTip(
+            "Bernstein: the paper's basis, every node moves every point (2 to 10 per axis). "
+            "B-spline, Catmull-Rom, Cardinal, Linear: Blender's lattice, each point moves "
+            "with the 4x4x4 nodes around it (1 to 64 per axis)."
+        )
+        self.basis.currentIndexChanged.connect(self._basis_ranges)
+        lgrid.addWidget(QLabel("Basis"), 1, 0)
+        lgrid.addWidget(self.basis, 1, 1, 1, 2)
         self.rebuild = QPushButton("Rebuild lattice")
         self.rebuild.clicked.connect(
             lambda: self.latticeRequested.emit(tuple(s.value() for s in self.shape))
         )
-        lgrid.addWidget(self.rebuild, 1, 0, 1, 3)
-        note = QLabel("Nodes per axis. Rebuilding resets moves and pins.")
+        lgrid.addWidget(self.rebuild, 2, 0, 1, 3)
+        note = QLabel("Nodes per axis and basis. Rebuilding resets moves and pins.")
         note.setStyleSheet("color: #8b95a5;")
         note.setWordWrap(True)
-        lgrid.addWidget(note, 2, 0, 1, 3)
+        lgrid.addWidget(note, 3, 0, 1, 3)
         lay.addWidget(lat)
 
         # display
@@ -285,14 +299,39 @@ class Panel(QWidget):
         self.target.setValue(percent)
         self.target.blockSignals(False)
 
-    def show_shape(self, shape) -> None:
+    def show_shape(self, shape, basis=None) -> None:
+        """The lattice's node counts, and its basis (one name for all axes) when given."""
+        if basis is not None:
+            self.basis.blockSignals(True)
+            at = self.basis.findData(basis[0] if len(set(basis)) == 1 else BERNSTEIN)
+            self.basis.setCurrentIndex(max(at, 0))
+            self.basis.blockSignals(False)
+            self._basis_ranges()
         for s, v in zip(self.shape, shape):
             s.blockSignals(True)
             s.setValue(int(v))
             s.blockSignals(False)
 
+    def basis_name(self) -> str:
+        """The basis chosen in the lattice box (a name of :data:`BASIS_LABELS`)."""
+        return str(self.basis.currentData())
+
+    def _basis_ranges(self) -> None:
+        """The node-count range of the chosen basis on the spin boxes."""
+        local = self.basis_name() != BERNSTEIN
+        low, high = (MIN_LOCAL, MAX_LOCAL) if local else (MIN_NODES, MAX_NODES)
+        for s in self.shape:
+            s.setRange(low, high)
+
     def show_solve_state(self, text: str, color: str = "#c6ccd4") -> None:
         self.solve_state.setText(f'<span style="color:{color}">{text}</span>')
+
+
+#: the lattice box's basis choice: name -> label (Blender's names for its interpolations)
+BASIS_LABELS = {
+    BERNSTEIN: "Bernstein (paper)",
+    **{k: {"bspline": "B-Spline", "catmull-rom": "Catmull-Rom"}.get(k, k.title()) for k in KINDS},
+}
 
 
 def _role(axes: np.ndarray, moved: bool, held: bool) -> tuple[str, str]:

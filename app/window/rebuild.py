@@ -34,11 +34,12 @@ from .loading import Gate
 BACKGROUND_FACES = 100_000
 
 
-def prepare_rebuild(base, shape):
-    """The edit that rebuilds the lattice with ``shape`` nodes from ``base`` and the view's
+def prepare_rebuild(base, shape, basis=None):
+    """The edit that rebuilds the lattice with ``shape`` nodes (and ``basis``: None keeps
+    it) from ``base`` and the view's
     arrays for it: ``(edit, prep)``, or ``(None, None)`` when the lattice has that shape
     already. Qt-free: what the thread runs. Raises :class:`IsochorError` for a bad shape."""
-    edit = latticerules.edit_lattice(base, shape)
+    edit = latticerules.edit_lattice(base, shape, basis)
     if edit is None:
         return None, None
     surface = edit.state.surface
@@ -83,20 +84,20 @@ class LatticeRebuild(QObject):
         """A rebuild runs whose result will be committed."""
         return self._running is not None
 
-    def start(self, shape) -> bool:
-        """Rebuild the lattice with ``shape`` nodes: at once for a small model (True when
+    def start(self, shape, basis=None) -> bool:
+        """Rebuild the lattice with ``shape`` nodes (and ``basis``): at once for a small model (True when
         the lattice changed), on a thread for a big one (True: it started)."""
         win = self.win
         self.cancel()
         base = win.doc.base()
         if win.state.surface.full.n_faces <= BACKGROUND_FACES:
-            edit, prep = prepare_rebuild(base, shape)
+            edit, prep = prepare_rebuild(base, shape, basis)
             return self._commit(edit, prep)
         self.generation += 1
         gen = self.generation
         self._running = (gen, win.doc.cell)
         thread = threading.Thread(
-            target=self._run, args=(gen, base, shape), name=f"isochor-lattice-{gen}", daemon=True
+            target=self._run, args=(gen, base, shape, basis), name=f"isochor-lattice-{gen}", daemon=True
         )
         self.threads = [t for t in self.threads if t.is_alive()] + [thread]
         win.statusBar().showMessage("Rebuilding the lattice {}x{}x{}…".format(*shape))
@@ -108,9 +109,9 @@ class LatticeRebuild(QObject):
         self._running = None
 
     # -- the thread ----------------------------------------------------------------------------
-    def _run(self, gen: int, base, shape) -> None:
+    def _run(self, gen: int, base, shape, basis) -> None:
         try:
-            done = prepare_rebuild(base, shape)
+            done = prepare_rebuild(base, shape, basis)
         except IsochorError as exc:
             self._emit(self.failed, gen, str(exc))
         except Exception as exc:  # every failure becomes the message shown

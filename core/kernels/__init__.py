@@ -24,6 +24,9 @@ What they compute (the same numbers as the NumPy path, to rounding; ``tests/test
   samples, on the first solve of a model);
 - :func:`determinants`: det J at many points, the fold check of every result
   (:mod:`core.kernels.folds`);
+- :func:`local_apply`, :func:`local_transpose`, :func:`local_determinants`: the same three
+  for the local (Blender) bases of :mod:`core.localbasis`, a 4x4x4 window per point
+  (:mod:`core.kernels.local`);
 - the solver's own work per step (:mod:`core.kernels.solver`): its entry points are in
   :mod:`core.kernels.step`.
 

@@ -34,6 +34,8 @@ from ..goal.anchor import held_face
 from ..goal.handles import Handle, HandleSystem, handle_rows
 from ..goal.spec import Goal
 from ..goal.symmetry import Mirror
+from ..lattice import Lattice
+from ..springs import sparse_hessian
 from .generators import relay
 from .outcome import outcome, preview
 from .records import LevelStats, Progress, SolveResult, frozen_copy
@@ -48,6 +50,32 @@ from .solver import (
 from .surface import FOLD_MARGIN, EmbeddedSurface, live_level
 
 __all__ = ["EmbeddedSurface", "Progress", "SolveResult", "live_level", "solve"]
+
+
+#: a live frame of a dense local lattice (above :data:`isochor.core.springs.SPARSE_VARIABLES`
+#: coordinates) solves only the free nodes within this many node steps of the moved ones
+LIVE_REACH = 4
+
+
+def live_reach(lattice: Lattice, nodes: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """(n,) bool: the nodes a live frame may move. Every node, except on a dense lattice of
+    a local basis: there each point moves with its 4x4x4 nearest nodes only, and a frame
+    that solved all of them (12k coordinates at 16x16x16) would take a sparse solve per
+    step; it moves the nodes within :data:`LIVE_REACH` steps of the moved ones (fixed away
+    from rest) instead, enough to hold the volume on the preview level. The solve when the
+    drag ends moves them all."""
+    everything = np.ones(lattice.n_nodes, dtype=bool)
+    if not (lattice.local and sparse_hessian(lattice.n_nodes)):
+        return everything
+    away = np.any(np.abs(nodes - lattice.rest_nodes) > 1e-12 * lattice.size, axis=1)
+    moved = np.flatnonzero(fixed.any(axis=1) & away)
+    if len(moved) == 0:
+        return everything
+    ijk = np.indices(lattice.shape).reshape(3, -1).T
+    near = np.zeros(lattice.n_nodes, dtype=bool)
+    for r in moved:
+        near |= np.abs(ijk - ijk[r]).max(axis=1) <= LIVE_REACH
+    return near
 
 
 @kernels.one_path
@@ -127,6 +155,8 @@ def solve(
             mirror_axis=None if mirror is None else mirror.axis,
         )
     fixed[held] = True
+    if live and mirror is None and not handles:
+        fixed |= ~live_reach(lattice, x, fixed)[:, None]
     free = ~fixed
     if mirror is None:
         coords = Coordinates(free, center, size)
@@ -210,7 +240,9 @@ def solve(
     # result never depends on what was solved before.
     margin = guard.margin if goal.fold_guard else None
     curvatures = surface.shared(
-        ("curvatures", coords.key, margin), lambda: Curvatures(hessian, coords), reuse=near
+        ("curvatures", coords.key, margin),
+        lambda: Curvatures(hessian, coords, lattice.shape),
+        reuse=near,
     )
 
     lam, sigma = np.zeros(first.count), opts.sigma0

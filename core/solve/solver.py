@@ -28,7 +28,7 @@ import scipy.sparse as sp
 from ..defaults import TOL_NODES, TOL_VOLUME
 from .generators import relay
 from .lbfgs import Objective, lbfgs
-from .precondition import Curvature, Preconditioner
+from .precondition import Curvature, Preconditioner, dissection
 
 
 @dataclass(frozen=True)
@@ -79,6 +79,10 @@ class SolverOptions:
 #: (/ object size) from where it was taken; a drag's frame and a level that starts near its
 #: optimum keep one
 CURVATURE_MOVE = 1e-2
+#: the same for a sparse curvature (a dense lattice of a local basis), whose factorisation
+#: costs most of a solve (16x16x16: 0.4-0.8 s): taken again only after a larger move; the
+#: L-BFGS pairs correct the older curvature meanwhile
+SPARSE_CURVATURE_MOVE = 0.25
 
 
 class Curvatures:
@@ -92,10 +96,13 @@ class Curvatures:
     ----------
     hessian : ``X -> (3n, 3n)`` the energy's Hessian over the node coordinates
     coords : the solve's :class:`Coordinates`
+    shape : the lattice's node counts: a sparse curvature is factored in the nested
+        dissection order of its grid (:func:`~isochor.core.solve.precondition.dissection`)
     """
 
-    def __init__(self, hessian, coords: Coordinates) -> None:
+    def __init__(self, hessian, coords: Coordinates, shape=None) -> None:
         self.hessian, self.coords = hessian, coords
+        self._order = None if shape is None else coords.ordered(dissection(tuple(shape)))
         #: (y, its curvature): one tuple, so that a solver thread that is being stopped
         #: and the next solve's thread never see half of an update
         self._taken: tuple[np.ndarray, Curvature] | None = None
@@ -103,8 +110,14 @@ class Curvatures:
     def at(self, y: np.ndarray, nodes) -> Curvature:
         """The curvature for variables ``y``; ``nodes()`` gives their node positions."""
         taken = self._taken
-        if taken is None or np.abs(y - taken[0]).max() > CURVATURE_MOVE:
-            taken = (np.array(y), Curvature(self.coords.restrict(self.hessian(nodes()))))
+        far = CURVATURE_MOVE if taken is None or not taken[1].sparse else SPARSE_CURVATURE_MOVE
+        if taken is None or np.abs(y - taken[0]).max() > far:
+            h = self.coords.restrict(self.hessian(nodes()))
+            if sp.issparse(h):
+                curvature = Curvature(h, self._order, self.coords.whole_nodes)
+            else:
+                curvature = Curvature(h)
+            taken = (np.array(y), curvature)
             self._taken = taken
         return taken[1]
 
@@ -181,6 +194,23 @@ class Coordinates:
         if len(self.dst):
             return np.asarray(self.matrix @ (self.matrix @ h).T)
         return h.take(self._columns, axis=0).take(self._columns, axis=1)
+
+    @cached_property
+    def whole_nodes(self) -> bool:
+        """Whether the variables are whole nodes (x, y, z of each, in a row) with no ties."""
+        cols = self._columns
+        if len(self.dst) or len(cols) % 3:
+            return False
+        triples = cols.reshape(-1, 3)
+        return bool(np.all(triples[:, 0] % 3 == 0) and np.all(np.diff(triples, axis=1) == 1))
+
+    def ordered(self, node_order: np.ndarray) -> np.ndarray:
+        """(count,) the variables sorted by their node's place in ``node_order`` (a
+        permutation of the nodes), coordinates x, y, z of a node together."""
+        rank = np.empty(len(node_order), dtype=np.int64)
+        rank[np.asarray(node_order)] = np.arange(len(node_order))
+        key = rank[self._columns // 3] * 3 + self._columns % 3
+        return np.argsort(key, kind="stable")
 
     @property
     def moving(self) -> np.ndarray:
