@@ -85,8 +85,9 @@ class LatticeRebuild(QObject):
         return self._running is not None
 
     def start(self, shape, basis=None) -> bool:
-        """Rebuild the lattice with ``shape`` nodes (and ``basis``): at once for a small model (True when
-        the lattice changed), on a thread for a big one (True: it started)."""
+        """Rebuild the lattice with ``shape`` nodes (and ``basis``): at once for a small
+        model (True when the lattice changed), on a thread for a big one (True: it
+        started)."""
         win = self.win
         self.cancel()
         base = win.doc.base()
@@ -97,7 +98,10 @@ class LatticeRebuild(QObject):
         gen = self.generation
         self._running = (gen, win.doc.cell)
         thread = threading.Thread(
-            target=self._run, args=(gen, base, shape, basis), name=f"isochor-lattice-{gen}", daemon=True
+            target=self._run,
+            args=(gen, base, shape, basis),
+            name=f"isochor-lattice-{gen}",
+            daemon=True,
         )
         self.threads = [t for t in self.threads if t.is_alive()] + [thread]
         win.statusBar().showMessage("Rebuilding the lattice {}x{}x{}…".format(*shape))
