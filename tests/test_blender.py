@@ -248,10 +248,12 @@ def test_bad_input_is_one_line_and_changes_nothing(addon):
 
 @needs_bases
 def test_a_mesh_that_cannot_be_closed_is_one_line(addon):
+    """A flat open sheet (a square's fan) cannot be closed into a solid (an open mesh with
+    a volume is capped and solved): one line saying why, nothing changed."""
     empty_scene()
     mesh = bpy.data.meshes.new("sheet")
-    corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0.5, 0.5, 0.5)]
-    mesh.from_pydata(corners, [], [(0, 1, 4), (1, 2, 4), (2, 3, 4)])
+    corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0.5, 0.5, 0)]
+    mesh.from_pydata(corners, [], [(0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4)])
     ob = bpy.data.objects.new("sheet", mesh)
     bpy.context.scene.collection.objects.link(ob)
     lat = lattice((3, 3, 3), "KEY_BSPLINE")
@@ -259,7 +261,8 @@ def test_a_mesh_that_cannot_be_closed_is_one_line(addon):
     bpy.context.view_layer.objects.active = ob
     lat.data.points.foreach_set("select", np.arange(27) < 9)
     before = points(lat)
-    with pytest.raises(RuntimeError, match=r"^Error: Isochor: the surface is not closed") as err:
+    why = r"^Error: Isochor: the surface is a single flat open sheet.*no solid to keep$"
+    with pytest.raises(RuntimeError, match=why) as err:
         bpy.ops.isochor.preserve_volume()
     assert len(str(err.value).strip().splitlines()) == 1
     np.testing.assert_array_equal(points(lat), before)
