@@ -553,6 +553,20 @@ def test_suzanne_exported_by_blender_opens_and_squashes_with_its_parts(tmp_path)
     assert abs(capped_volume(v_cli, f_cli)) == pytest.approx(before, rel=TOL + CAP_SLACK)
 
 
+@pytest.mark.parametrize("fmt", ["ply", "stl", "glb"])
+def test_suzanne_in_blenders_other_formats_opens_the_same(tmp_path, fmt):
+    """Blender's PLY (quads and triangles mixed), STL and glTF of Suzanne: her three parts
+    are three bodies, her four holes capped."""
+    from isochor.core.io.meshio import load_mesh
+
+    suzanne()
+    path = tmp_path / f"suzanne.{fmt}"
+    export = {"ply": bpy.ops.wm.ply_export, "stl": bpy.ops.wm.stl_export}
+    assert export.get(fmt, bpy.ops.export_scene.gltf)(filepath=str(path)) == {"FINISHED"}
+    loaded = load_mesh(path)
+    assert (loaded.bodies, loaded.mesh.cap_vertices) == (3, 4), loaded.warnings
+
+
 @needs_bases
 def test_the_addon_keeps_suzannes_capped_volume(addon, capfd):
     """Suzanne under a B-spline lattice: the bottom layer pinned, the top one lifted;
