@@ -2,7 +2,8 @@
 Blender 4.2+; the manifest is ``blender_manifest.toml``, ``make addon`` builds the zip).
 
 Modules: :mod:`.rig` (the mesh and lattice as arrays, bpy-free: point orders, the Isochor
-session), :mod:`.scene` (reading and checking Blender's data, writing points, volumes),
+session, the capped solid whose volume is kept), :mod:`.scene` (reading and checking
+Blender's data, writing points, volumes),
 :mod:`.solving` (one solve, the live solver, the bake), :mod:`.operators` (Preserve Volume,
 Live, Bake, Measure), :mod:`.panel` (the sidebar panel and its settings), :mod:`.build`
 (the extension package; not shipped in it).

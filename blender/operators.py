@@ -1,12 +1,13 @@
 """The add-on's operators: Preserve volume (one solve), Live (re-solves while points move),
-Bake (a frame range), Measure (the volume read-out). Each solve is one undo step; bad input
+Bake (a frame range), Measure (the volume read-out: an open mesh's capped volume, the report
+line saying how many holes were capped). Each solve is one undo step; bad input
 is one line in the report area and changes nothing."""
 
 from __future__ import annotations
 
 import bpy
 
-from .scene import RigError, Target
+from .scene import RigError, Target, Volumes
 from .solving import LiveSolver, Settings, bake, solve_once
 
 
@@ -28,11 +29,12 @@ def _line(exc: Exception) -> str:
     return line if line.startswith("Isochor:") else f"Isochor: {line}"
 
 
-def measure(context, target: Target) -> None:
+def measure(context, target: Target) -> Volumes:
+    """The read-out set to the volume the solve keeps (an open mesh's capped volume)."""
     props = context.scene.isochor
-    rest = target.rest_volume()
-    props.volume = target.evaluated_volume(context.evaluated_depsgraph_get())
-    props.volume_ratio = props.volume / rest if rest else 0.0
+    volumes = target.volumes(context.evaluated_depsgraph_get())
+    props.volume, props.volume_ratio, props.holes = volumes.now, volumes.ratio, volumes.holes
+    return volumes
 
 
 class ISOCHOR_OT_preserve_volume(bpy.types.Operator):
@@ -49,8 +51,8 @@ class ISOCHOR_OT_preserve_volume(bpy.types.Operator):
         except _errors() as exc:
             self.report({"ERROR"}, _line(exc))
             return {"CANCELLED"}
-        measure(context, target)
-        self.report({"INFO"}, f"Isochor: volume kept within {abs(error):.1e}")
+        volumes = measure(context, target)
+        self.report({"INFO"}, f"Isochor: volume kept within {abs(error):.1e}{volumes.capped()}")
         return {"FINISHED"}
 
 
@@ -62,10 +64,15 @@ class ISOCHOR_OT_measure(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            measure(context, Target.of(context.active_object))
+            volumes = measure(context, Target.of(context.active_object))
         except _errors() as exc:
             self.report({"ERROR"}, _line(exc))
             return {"CANCELLED"}
+        self.report(
+            {"INFO"},
+            f"Isochor: volume {volumes.now:.6g}, {100 * volumes.ratio:.2f} % of rest"
+            f"{volumes.capped()}",
+        )
         return {"FINISHED"}
 
 
@@ -84,9 +91,12 @@ class ISOCHOR_OT_bake(bpy.types.Operator):
         except _errors() as exc:
             self.report({"ERROR"}, _line(exc))
             return {"CANCELLED"}
-        measure(context, target)
+        volumes = measure(context, target)
         worst = max(abs(e) for e in errors)
-        self.report({"INFO"}, f"Isochor: baked {len(errors)} frames, volume within {worst:.1e}")
+        self.report(
+            {"INFO"},
+            f"Isochor: baked {len(errors)} frames, volume within {worst:.1e}{volumes.capped()}",
+        )
         return {"FINISHED"}
 
 
@@ -122,11 +132,11 @@ class ISOCHOR_OT_live(bpy.types.Operator):
         if event.type == "TIMER":
             try:
                 running = self._solver.tick()
+                if not running and self._solver.last is not None:
+                    measure(context, self._solver.target)
             except _errors() as exc:
                 self.report({"ERROR"}, _line(exc))
                 return self._end(context)
-            if not running and self._solver.last is not None:
-                measure(context, self._solver.target)
             if context.area is not None:
                 context.area.tag_redraw()
         return {"PASS_THROUGH"}

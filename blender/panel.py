@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import bpy
 
+from .scene import holes_capped
+
 
 class IsochorSettings(bpy.types.PropertyGroup):
     pins: bpy.props.EnumProperty(
@@ -27,6 +29,7 @@ class IsochorSettings(bpy.types.PropertyGroup):
     frame_end: bpy.props.IntProperty(name="End", default=24)
     volume: bpy.props.FloatProperty(name="Volume", default=0.0)
     volume_ratio: bpy.props.FloatProperty(name="Ratio", default=0.0)
+    holes: bpy.props.IntProperty(name="Holes Capped", default=0)
 
 
 class VIEW3D_PT_isochor(bpy.types.Panel):
@@ -56,7 +59,10 @@ class VIEW3D_PT_isochor(bpy.types.Panel):
         box.operator("isochor.bake", icon="KEYINGSET")
         row = layout.row()
         if props.volume_ratio:
-            row.label(text=f"Volume {props.volume:.4g} ({100 * props.volume_ratio:.2f} % of rest)")
+            capped = f", {holes_capped(props.holes)}" if props.holes else ""
+            row.label(
+                text=f"Volume {props.volume:.4g} ({100 * props.volume_ratio:.2f} % of rest{capped})"
+            )
         else:
             row.label(text="Volume: not measured")
         row.operator("isochor.measure", text="", icon="FILE_REFRESH")

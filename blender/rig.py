@@ -100,3 +100,63 @@ class Rig:
         """The session's nodes set to this rig's points, its fixed nodes to the pins."""
         np.copyto(session.nodes, self.nodes)
         session.fixed[:] = self.pinned[:, None]
+
+    def lattice(self):
+        """Isochor's FFD of this rig (the map Blender's modifier evaluates)."""
+        from isochor.core.lattice import Lattice
+
+        return Lattice(self.shape, self.origin, self.axes, self.basis, self.outside)
+
+    def solid(self) -> Solid:
+        """The :class:`Solid` whose volume a solve of this rig keeps."""
+        from isochor.core.io.repair import clean_closed_surface
+
+        clean, _, _ = clean_closed_surface(self.vertices, self.faces)
+        own = clean.own_vertices
+        return Solid(
+            faces=clean.faces,
+            rows=_rows_at(clean.vertices[:own], self.vertices),
+            caps=clean.vertices[own:],
+            holes=clean.cap_vertices,
+        )
+
+
+@dataclass(frozen=True)
+class Solid:
+    """The closed solid Isochor keeps the volume of, capped once at rest by Isochor's own
+    repair (:func:`isochor.core.io.repair.clean_closed_surface`): the mesh's triangles,
+    each body turned to face outward, and a fan over each hole from a cap point that the
+    lattice maps like any vertex.
+
+    ``faces`` (f, 3) number the mesh's vertices ``rows`` first (a mesh vertex at the place
+    of each of Isochor's welded vertices), then the cap points; ``caps`` (h, 3) the cap
+    points at rest in the lattice object's space; ``holes`` how many were capped."""
+
+    faces: np.ndarray
+    rows: np.ndarray
+    caps: np.ndarray
+    holes: int
+
+    def volume(self, vertices: np.ndarray, caps: np.ndarray) -> float:
+        """The signed volume with the mesh's vertices at ``vertices`` (the mesh's order)
+        and the cap points at ``caps`` (both in one space)."""
+        p = np.concatenate([np.asarray(vertices, float)[self.rows], np.asarray(caps, float)])
+        p = p - p.mean(axis=0)  # about the middle: the rounding of the tetrahedra is small
+        a, b, c = (p[self.faces[:, i]] for i in range(3))
+        return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+
+
+def _rows_at(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """(p,) the row of ``vertices`` at each of ``points`` (exact copies of some rows: the
+    repair welds by keeping one vertex of each group and copies the ones it splits)."""
+
+    def key(a):
+        return np.ascontiguousarray(a, dtype=np.float64).view(np.dtype((np.void, 24))).ravel()
+
+    table = key(vertices)
+    order = np.argsort(table)
+    at = np.searchsorted(table[order], key(points))
+    found = order[np.minimum(at, len(order) - 1)]
+    if len(points) and not np.array_equal(key(vertices[found]), key(points)):
+        raise ValueError("a repaired vertex is not one of the mesh's")
+    return found

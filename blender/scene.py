@@ -1,6 +1,7 @@
 """Reading and writing Blender's data for the add-on: the active mesh, its Lattice modifier
 and lattice checked (one clear line when something is not supported), the
-:class:`~.rig.Rig` read from them, solved points written back, volumes measured."""
+:class:`~.rig.Rig` read from them, solved points written back, volumes measured (an open
+mesh capped as Isochor caps it)."""
 
 from __future__ import annotations
 
@@ -140,12 +141,10 @@ class Target:
         mesh.calc_loop_triangles()
         if not len(mesh.loop_triangles):
             raise RigError(f"Isochor: mesh {self.mesh.name!r} has no faces")
-        verts = np.empty(len(mesh.vertices) * 3)
-        mesh.vertices.foreach_get("co", verts)
         faces = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
         mesh.loop_triangles.foreach_get("vertices", faces)
         to_lat = self.to_lattice()
-        local = verts.reshape(-1, 3) @ to_lat[:3, :3].T + to_lat[:3, 3]
+        local = _moved(_coordinates(mesh.vertices), to_lat)
         rest = self.rest()
         pins = self.pinned(source, group)
         if extra_pins is not None:
@@ -174,31 +173,78 @@ class Target:
         self.lattice.data.update_tag()
         self.mesh.update_tag()
 
-    def evaluated_volume(self, depsgraph=None) -> float:
-        """The volume of the mesh as Blender evaluates it (all its modifiers), world units."""
+    def volumes(self, depsgraph=None) -> Volumes:
+        """The volume a solve keeps, at rest and now, in world units: the closed solid of
+        the mesh as the Lattice modifier leaves it, an open mesh capped as Isochor caps it
+        (:meth:`.rig.Rig.solid`). The cap points are moved by Isochor's FFD (Blender's map
+        within 1e-6 of the size); the mesh's vertices are Blender's evaluated ones (also
+        the FFD's when a later modifier is on: its output is not the lattice's)."""
+        rig = self.rig()
+        solid = rig.solid()
+        lattice_world = np.array(self.lattice.matrix_world)
+        mesh_world = np.array(self.mesh.matrix_world)
+        ffd = rig.lattice()
+        caps_now = _moved(ffd.deform(solid.caps, rig.nodes), lattice_world)
+        now = self._evaluated(depsgraph)
+        if now is None:  # another modifier after the lattice: the lattice's output by the FFD
+            now = _moved(ffd.deform(rig.vertices, rig.nodes), lattice_world)
+        else:
+            now = _moved(now, mesh_world)
+        rest = _moved(_coordinates(self.mesh.data.vertices), mesh_world)
+        return Volumes(
+            rest=solid.volume(rest, _moved(solid.caps, lattice_world)),
+            now=solid.volume(now, caps_now),
+            holes=solid.holes,
+        )
+
+    def _evaluated(self, depsgraph) -> np.ndarray | None:
+        """(v, 3) the mesh's vertices as Blender evaluates them, object space; None when a
+        modifier after the lattice is on (the output is not the lattice's)."""
+        mods = list(self.mesh.modifiers)
+        if any(m.show_viewport for m in mods[mods.index(self.modifier) + 1 :]):
+            return None
         depsgraph = depsgraph or bpy.context.evaluated_depsgraph_get()
         depsgraph.update()
         ob = self.mesh.evaluated_get(depsgraph)
         mesh = ob.to_mesh()
         try:
-            return _volume(mesh, np.array(ob.matrix_world))
+            out = _coordinates(mesh.vertices)
         finally:
             ob.to_mesh_clear()
-
-    def rest_volume(self) -> float:
-        """The volume of the mesh without its modifiers, world units."""
-        return _volume(self.mesh.data, np.array(self.mesh.matrix_world))
+        return out if len(out) == len(self.mesh.data.vertices) else None
 
 
-def _volume(mesh, matrix: np.ndarray) -> float:
-    mesh.calc_loop_triangles()
-    verts = np.empty(len(mesh.vertices) * 3)
-    mesh.vertices.foreach_get("co", verts)
-    tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
-    mesh.loop_triangles.foreach_get("vertices", tris)
-    p = verts.reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
-    a, b, c = (p[tris.reshape(-1, 3)[:, i]] for i in range(3))
-    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+@dataclass(frozen=True)
+class Volumes:
+    """What the read-out shows: the volume at rest and now (world units) and how many
+    holes were capped to measure them."""
+
+    rest: float
+    now: float
+    holes: int
+
+    @property
+    def ratio(self) -> float:
+        return self.now / self.rest if self.rest else 0.0
+
+    def capped(self) -> str:
+        """' (3 holes capped)' for the report line, '' for a closed mesh."""
+        return f" ({holes_capped(self.holes)})" if self.holes else ""
+
+
+def holes_capped(holes: int) -> str:
+    """'3 holes capped', '1 hole capped'."""
+    return f"{holes} hole{'' if holes == 1 else 's'} capped"
+
+
+def _coordinates(vertices) -> np.ndarray:
+    out = np.empty(len(vertices) * 3)
+    vertices.foreach_get("co", out)
+    return out.reshape(-1, 3)
+
+
+def _moved(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    return points @ matrix[:3, :3].T + matrix[:3, 3]
 
 
 def _basis(kind: str, axis: str) -> str:

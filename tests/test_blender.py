@@ -101,8 +101,7 @@ def points(lat) -> np.ndarray:
 def volume_ratio(addon, ob) -> float:
     from blender.scene import Target
 
-    target = Target.of(ob)
-    return target.evaluated_volume() / target.rest_volume()
+    return Target.of(ob).volumes().ratio
 
 
 # --- Blender's modifier = Isochor's FFD ---------------------------------------------------
@@ -248,10 +247,12 @@ def test_bad_input_is_one_line_and_changes_nothing(addon):
 
 @needs_bases
 def test_a_mesh_that_cannot_be_closed_is_one_line(addon):
+    """A flat open sheet (a square's fan) cannot be closed into a solid (an open mesh with
+    a volume is capped and solved): one line saying why, nothing changed."""
     empty_scene()
     mesh = bpy.data.meshes.new("sheet")
-    corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0.5, 0.5, 0.5)]
-    mesh.from_pydata(corners, [], [(0, 1, 4), (1, 2, 4), (2, 3, 4)])
+    corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0.5, 0.5, 0)]
+    mesh.from_pydata(corners, [], [(0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4)])
     ob = bpy.data.objects.new("sheet", mesh)
     bpy.context.scene.collection.objects.link(ob)
     lat = lattice((3, 3, 3), "KEY_BSPLINE")
@@ -259,7 +260,8 @@ def test_a_mesh_that_cannot_be_closed_is_one_line(addon):
     bpy.context.view_layer.objects.active = ob
     lat.data.points.foreach_set("select", np.arange(27) < 9)
     before = points(lat)
-    with pytest.raises(RuntimeError, match=r"^Error: Isochor: the surface is not closed") as err:
+    why = r"^Error: Isochor: the surface is a single flat open sheet.*no solid to keep$"
+    with pytest.raises(RuntimeError, match=why) as err:
         bpy.ops.isochor.preserve_volume()
     assert len(str(err.value).strip().splitlines()) == 1
     np.testing.assert_array_equal(points(lat), before)
@@ -386,6 +388,216 @@ def test_a_24_frame_bake_keeps_each_frames_volume(addon):
     bpy.context.scene.frame_set(12)
     assert abs(points(lat)[-1, 2] - (data.points[-1].co.z + 0.35 * height)) < 1e-5  # the key
     assert lat["isochor_baked"]  # a re-bake does not take these for pins
+
+
+# --- open meshes: the capped volume, Blender's Suzanne -----------------------------------
+
+
+def arrays(ob) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh's vertices (object space) and its triangles, as Blender triangulates it."""
+    mesh = ob.data
+    mesh.calc_loop_triangles()
+    tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int64)
+    mesh.loop_triangles.foreach_get("vertices", tris)
+    return np.array([v.co for v in mesh.vertices]), tris.reshape(-1, 3)
+
+
+def pieces(edges: np.ndarray, n: int) -> int:
+    """How many connected pieces ``edges`` (k, 2) of ``n`` vertices make."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    graph = sp.coo_matrix((np.ones(len(edges)), tuple(np.asarray(edges).T)), shape=(n, n))
+    label = connected_components(graph, directed=False)[1]
+    return len(np.unique(label[np.asarray(edges).ravel()]))
+
+
+def parts_and_holes(vertices, faces) -> tuple[int, int]:
+    """Loose parts (joined by edges, as Blender's Separate by Loose Parts) and boundary
+    loops (edges on one triangle), counted by this test."""
+    sides = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
+    edges, count = np.unique(sides, axis=0, return_counts=True)
+    return pieces(edges, len(vertices)), pieces(edges[count == 1], len(vertices))
+
+
+def capped_now(ob, rest: np.ndarray, faces: np.ndarray) -> float:
+    """The volume of ``ob`` as Blender evaluates it, its holes capped by this test: a fan
+    over each loop from the loop's mean point at rest, moved by Blender's own modifier (a
+    point cloud under the same lattice): a cap that deforms with the space over its hole."""
+    from tests.test_caps import capped_volume
+
+    def apex(loop: np.ndarray) -> np.ndarray:
+        mesh = bpy.data.meshes.new("apex")
+        mesh.from_pydata([rest[loop].mean(axis=0).tolist()], [], [])
+        probe = bpy.data.objects.new("apex", mesh)
+        bpy.context.scene.collection.objects.link(probe)
+        probe.matrix_world = ob.matrix_world
+        probe.modifiers.new("Lattice", "LATTICE").object = ob.modifiers[0].object
+        try:
+            return evaluated(probe)[0]
+        finally:
+            bpy.data.objects.remove(probe)
+            bpy.data.meshes.remove(mesh)
+
+    return capped_volume(evaluated(ob), faces, apex=apex)
+
+
+def suzanne():
+    """Blender's own Suzanne in an empty scene: open eye sockets, two eyes (open at the
+    back) sunk into them, as separate parts."""
+    empty_scene()
+    assert bpy.ops.mesh.primitive_monkey_add() == {"FINISHED"}
+    return bpy.context.active_object
+
+
+@needs_bases
+def test_an_open_mesh_reads_and_keeps_its_capped_volume(addon, capfd):
+    """A ball with a hole: the solve keeps the capped volume, the read-out measures it (not
+    the open surface's sum, which moves with the origin) and the report line says so."""
+    from tests.test_caps import CAP_SLACK, capped_volume
+
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=2)
+    bm = bmesh.new()
+    bm.from_mesh(ob.data)
+    bmesh.ops.delete(bm, geom=[f for f in bm.faces if f.calc_center_median().x > 0.6],
+                     context="FACES")  # fmt: skip
+    bm.to_mesh(ob.data)
+    bm.free()
+    rest, faces = arrays(ob)
+    at_rest = capped_volume(rest, faces)
+    pin_and_drag(lat, 0.3)
+    bpy.context.view_layer.update()
+    assert abs(capped_now(ob, rest, faces) / at_rest - 1) > 0.01  # the drag alone changes it
+    capfd.readouterr()
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    assert "(1 hole capped)" in capfd.readouterr().out
+    kept = capped_now(ob, rest, faces) / at_rest
+    assert abs(kept - 1) <= TOL_VOLUME + F32_VOLUME + CAP_SLACK, kept
+    props = bpy.context.scene.isochor
+    assert props.holes == 1 and abs(props.volume_ratio - 1) <= TOL_VOLUME + F32_VOLUME
+    read = props.volume
+    assert read == pytest.approx(capped_now(ob, rest, faces), rel=F32_VOLUME + CAP_SLACK)
+
+    # the mesh and its lattice far from the origin: the same read-out; the open surface's
+    # own sum (what a closed mesh's volume is) changes
+    def surface_sum() -> float:
+        p = evaluated(ob) @ np.array(ob.matrix_world)[:3, :3].T + np.array(ob.location)
+        return float(np.einsum("ij,ij->i", p[faces[:, 0]],
+                               np.cross(p[faces[:, 1]], p[faces[:, 2]])).sum() / 6)  # fmt: skip
+
+    before = surface_sum()
+    for o in (ob, lat):
+        o.location = (40.0, -30.0, 20.0)
+    bpy.context.view_layer.update()
+    assert abs(surface_sum() - before) > abs(before)
+    assert bpy.ops.isochor.measure() == {"FINISHED"}
+    assert props.volume == pytest.approx(read, rel=F32_VOLUME)
+    # a modifier after the lattice (here one that adds vertices): still the lattice's solid
+    ob.modifiers.new("Subdivision", "SUBSURF")
+    assert bpy.ops.isochor.measure() == {"FINISHED"}
+    assert props.volume == pytest.approx(read, rel=F32_VOLUME) and props.holes == 1
+
+
+def test_suzanne_exported_by_blender_opens_and_squashes_with_its_parts(tmp_path):
+    """Blender's Suzanne written by Blender's OBJ exporter, opened by the library and by the
+    command line (this Python, out of process): its parts are its bodies, its holes are
+    capped, and a squash keeps the capped volume, measured by this test's own caps."""
+    import json
+    import subprocess
+    import sys
+
+    import isochor
+    from tests.test_caps import CAP_SLACK, TOL, capped_volume, read_back, squash_scenario
+
+    suzanne()
+    path = tmp_path / "suzanne.obj"
+    assert bpy.ops.wm.obj_export(filepath=str(path), export_materials=False) == {"FINISHED"}
+    v_in, f_in = read_back(path)
+    parts, holes = parts_and_holes(*arrays(bpy.context.active_object))
+    assert (parts, holes) == (3, 4)  # the head and two eyes; the sockets and the eyes' backs
+    before = abs(capped_volume(v_in, f_in))
+    height = float(np.ptp(v_in[:, 2]))
+    # the library: each body (the head, each eye) keeps its own capped volume
+    session = isochor.load(path, lattice=(3, 3, 3), preserve="per-body")
+    print("the repair says:", *session.warnings, sep="\n  ")
+    for i in range(3):
+        for j in range(3):
+            session.move((i, j, 2), by=(0, 0, -0.2 * height))
+    assert session.solve().converged
+    report = session.report
+    assert report["bodies"] == parts and report["caps"]["holes"] == holes
+    assert report["volume_original"] == pytest.approx(before, rel=CAP_SLACK)
+    assert max(abs(b["final"] / b["original"] - 1) for b in report["body_volumes"]) <= TOL
+    assert sorted(b["original"] for b in report["body_volumes"])[0] < 0.02 * before  # an eye
+    out = tmp_path / "out.obj"
+    session.export(out)
+    v_out, f_out = read_back(out)
+    assert v_out.shape == v_in.shape and np.array_equal(f_out, f_in)  # its own faces, no caps
+    assert abs(capped_volume(v_out, f_out)) == pytest.approx(before, rel=TOL + CAP_SLACK)
+    assert v_out[:, 2].max() < v_in[:, 2].max() - 0.1 * height  # squashed
+    # the command line, out of process
+    scene, cli_out, cli_report = squash_scenario(path, tmp_path, height), tmp_path / "cli.obj", \
+        tmp_path / "r.json"  # fmt: skip
+    run = subprocess.run(
+        [sys.executable, "-m", "isochor.app.cli.main", "solve", str(scene), "--out",
+         str(cli_out), "--report", str(cli_report)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    print("the command line says:", run.stdout, run.stderr, sep="\n")
+    assert f"capped: {holes} hole(s)" in run.stdout
+    doc = json.loads(cli_report.read_text())
+    assert doc["converged"] and doc["bodies"] == parts and doc["caps"]["holes"] == holes
+    v_cli, f_cli = read_back(cli_out)
+    assert np.array_equal(f_cli, f_in)
+    assert abs(capped_volume(v_cli, f_cli)) == pytest.approx(before, rel=TOL + CAP_SLACK)
+
+
+@pytest.mark.parametrize("fmt", ["ply", "stl", "glb"])
+def test_suzanne_in_blenders_other_formats_opens_the_same(tmp_path, fmt):
+    """Blender's PLY (quads and triangles mixed), STL and glTF of Suzanne: her three parts
+    are three bodies, her four holes capped."""
+    from isochor.core.io.meshio import load_mesh
+
+    suzanne()
+    path = tmp_path / f"suzanne.{fmt}"
+    export = {"ply": bpy.ops.wm.ply_export, "stl": bpy.ops.wm.stl_export}
+    assert export.get(fmt, bpy.ops.export_scene.gltf)(filepath=str(path)) == {"FINISHED"}
+    loaded = load_mesh(path)
+    assert (loaded.bodies, loaded.mesh.cap_vertices) == (3, 4), loaded.warnings
+
+
+@needs_bases
+def test_the_addon_keeps_suzannes_capped_volume(addon, capfd):
+    """Suzanne under a B-spline lattice: the bottom layer pinned, the top one lifted;
+    Preserve Volume keeps the volume of her capped solid (measured by this test's caps on
+    Blender's evaluated mesh) and says how many holes it capped."""
+    from tests.test_caps import CAP_SLACK, capped_volume
+
+    ob = suzanne()
+    lat = lattice((4, 4, 4), "KEY_BSPLINE", size=(3.0, 2.0, 2.2))
+    ob.modifiers.new("Lattice", "LATTICE").object = lat
+    bpy.context.view_layer.objects.active = ob
+    data = lat.data
+    w = np.arange(len(data.points)) // (data.points_u * data.points_v)
+    top = np.flatnonzero(w == data.points_w - 1)
+    data.points.foreach_set("select", (w == 0) | (w == data.points_w - 1))
+    for i in top:
+        data.points[int(i)].co_deform.z += 0.5
+    bpy.context.view_layer.update()
+    rest, faces = arrays(ob)
+    at_rest = capped_volume(rest, faces)
+    assert capped_now(ob, rest, faces) / at_rest - 1 > 0.1  # the lift grew her
+    capfd.readouterr()
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    said = capfd.readouterr().out
+    print(said)
+    assert "(4 holes capped)" in said
+    kept = capped_now(ob, rest, faces) / at_rest
+    assert abs(kept - 1) <= TOL_VOLUME + F32_VOLUME + CAP_SLACK, kept
+    props = bpy.context.scene.isochor
+    assert props.holes == 4 and abs(props.volume_ratio - 1) <= TOL_VOLUME + F32_VOLUME
+    assert np.ptp(evaluated(ob)[:, 2]) > np.ptp(rest[:, 2]) + 0.3  # she is taller, still
 
 
 # --- the extension package and the pipeline -----------------------------------------------

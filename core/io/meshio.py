@@ -3,7 +3,7 @@ write meshes.
 
 Reading (:func:`load_mesh`) goes through trimesh (polygons are triangulated by its readers;
 glTF through :mod:`isochor.core.io.gltf`, node transforms applied; a binary PLY of triangles
-straight into numpy, :func:`binary_ply`), then
+or of mixed polygons, as Blender writes it, straight into numpy, :func:`binary_ply`), then
 :func:`isochor.core.io.repair.clean_closed_surface` welds, checks and orients the surface.
 Any problem a file can have ends in one :class:`IsochorError` that names the file;
 trimesh's own exceptions and log lines never reach the user.
@@ -19,6 +19,7 @@ from __future__ import annotations
 import io
 import logging
 import re
+import struct
 import warnings
 from collections.abc import Iterable
 from contextlib import contextmanager
@@ -215,8 +216,9 @@ def binary_ply(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     """Vertices and triangles of a binary little-endian PLY of the common layout, read
     straight into numpy (several times faster than trimesh on a large model): a vertex
     element of scalar properties with x, y and z, then a face element of one list of
-    vertex indices, every face a triangle, nothing else. None for any other file (trimesh
-    reads it, or says what is wrong with it)."""
+    vertex indices, nothing else. Polygons of mixed sizes (Blender's PLY: triangles and
+    quads, which trimesh's reader refuses) are split into fans (:func:`polygon_fans`).
+    None for any other file (trimesh reads it, or says what is wrong with it)."""
     end = data.find(b"end_header\n", 0, SNIFF_BYTES)
     if not data.startswith(b"ply\n") or end < 0:
         return None
@@ -246,18 +248,69 @@ def binary_ply(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     vtype = np.dtype([(p.name, "<" + p.kind) for p in vertex.properties])
     ftype = np.dtype([("n", "<" + index.count), ("i", "<" + index.kind, (3,))])
     start = header.body
-    if n_faces <= 0 or len(data) - start != n_vertices * vtype.itemsize + n_faces * ftype.itemsize:
+    if n_faces <= 0 or ftype["i"].base.kind not in "iu" or ftype["n"].kind not in "iu":
         return None
-    if ftype["i"].base.kind == "f":
+    body = start + n_vertices * vtype.itemsize
+    if len(data) < body:
         return None
     rows = np.frombuffer(data, vtype, n_vertices, start)
-    tris = np.frombuffer(data, ftype, n_faces, start + n_vertices * vtype.itemsize)
-    if np.any(tris["n"] != 3):
-        return None  # polygons (or not this layout at all): trimesh's reader
     vertices = np.empty((n_vertices, 3))
     for j, name in enumerate("xyz"):
         vertices[:, j] = rows[name]
-    return vertices, tris["i"].astype(np.int64)
+    if len(data) - body == n_faces * ftype.itemsize:
+        tris = np.frombuffer(data, ftype, n_faces, body)
+        if np.all(tris["n"] == 3):
+            return vertices, tris["i"].astype(np.int64)
+    faces = polygon_fans(data, body, n_faces, ftype["n"], ftype["i"].base)
+    return None if faces is None else (vertices, faces)
+
+
+def polygon_fans(
+    data: bytes, start: int, rows: int, count: np.dtype, index: np.dtype
+) -> np.ndarray | None:
+    """(t, 3) int64 the fan triangles of ``rows`` polygons of a binary PLY's face list
+    (a ``count`` then that many ``index`` values each, from ``start``; mixed triangles and
+    quads, as Blender writes them), corner 0 to each other side. None unless the rows end
+    exactly at the end of ``data`` with every polygon of three corners or more, of more
+    than one size (trimesh reads polygons of one size: its triangles, in its order)."""
+    step, size = count.itemsize, index.itemsize
+    unpack = struct.Struct("<" + count.char).unpack_from
+    u8 = np.frombuffer(data, np.uint8)
+    counts = np.empty(rows, dtype=np.int64)
+    at = np.empty(rows, dtype=np.int64)  # where each polygon's indices start
+    pos, end, k, block, prev, same = start, len(data), 0, 64, -1, 0
+    # a row's place is known only from the rows before it: one by one, but after 8 rows
+    # of one size, blocks of rows of that size at once (doubling while they hold)
+    while k < rows:
+        if pos + step > end:
+            return None
+        n = int(unpack(data, pos)[0])
+        length = step + n * size
+        same, prev = (same + 1 if n == prev else 0), n
+        if same < 8:
+            at[k], counts[k] = pos + step, n
+            pos, k = pos + length, k + 1
+            continue
+        m = min(rows - k, block, (end - pos) // length)
+        if m < 1:
+            return None
+        offsets = pos + length * np.arange(m)
+        ahead = u8[offsets[:, None] + np.arange(step)].view("<" + count.char).ravel()
+        run = m if np.all(ahead == n) else int(np.argmin(ahead == n))
+        at[k : k + run], counts[k : k + run] = offsets[:run] + step, n
+        pos, k = pos + run * length, k + run
+        block, same = (2 * block, same) if run == m else (64, 0)
+    if pos != end or counts.min() < 3 or counts.min() == counts.max():
+        return None  # (polygons of one size: trimesh reads them, as it always has)
+    first = np.cumsum(counts) - counts  # each polygon's first corner in the flat list
+    corner = np.arange(int(counts.sum())) - np.repeat(first, counts)
+    where = np.repeat(at, counts) + size * corner
+    raw = np.frombuffer(data, np.uint8)[where[:, None] + np.arange(size)]
+    flat = np.ascontiguousarray(raw).view("<" + index.char).ravel().astype(np.int64)
+    fans = counts - 2
+    apex = np.repeat(first, fans)
+    side = np.arange(int(fans.sum())) - np.repeat(np.cumsum(fans) - fans, fans) + 1
+    return np.stack([flat[apex], flat[apex + side], flat[apex + side + 1]], axis=1)
 
 
 @contextmanager
