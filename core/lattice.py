@@ -53,10 +53,20 @@ def bernstein(degree: int, t: np.ndarray) -> np.ndarray:
     -------
     (p, degree + 1) float64
     """
-    t = np.asarray(t, dtype=np.float64)[:, None]
-    i = np.arange(degree + 1)
-    coef = np.array([comb(degree, k) for k in i], dtype=np.float64)
-    return coef * t**i * (1.0 - t) ** (degree - i)
+    t = np.asarray(t, dtype=np.float64)
+    s = 1.0 - t
+    # powers by repeated products (integer powers through np.power were most of a small
+    # level's basis set-up): up[i] = t**i, down[i] = s**(degree - i)
+    up = np.empty((degree + 1, len(t)))
+    down = np.empty((degree + 1, len(t)))
+    up[0] = 1.0
+    down[degree] = 1.0
+    for i in range(1, degree + 1):
+        np.multiply(up[i - 1], t, out=up[i])
+        np.multiply(down[degree - i + 1], s, out=down[degree - i])
+    up *= down
+    up *= np.array([comb(degree, k) for k in range(degree + 1)], dtype=np.float64)[:, None]
+    return up.T
 
 
 def bernstein_derivative(degree: int, t: np.ndarray) -> np.ndarray:

@@ -115,13 +115,19 @@ class Level:
     def volume(self, nodes: np.ndarray) -> float:
         # One-entry memo: the stopping test and the result ask the full mesh for the
         # volume of the same nodes, and on a big mesh that is the costliest call there is.
-        key = nodes.tobytes()
-        if self._last[0] != key:
-            self._last = (key, self.volume_op(self.basis.apply(nodes), self.center))
-        return self._last[1]
+        # The solver's last evaluation fills it too (:meth:`volume_and_gradient`): a
+        # level's end asks for the volume where its last step was evaluated.
+        key = np.asarray(nodes, dtype=np.float64).tobytes()
+        last = self._last
+        if last[0] == key:
+            return last[1]
+        v = self.volume_op(self.basis.apply(nodes), self.center)
+        self._last = (key, v)
+        return v
 
     def volume_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
         v, dv_dp = self.volume_op.value_and_gradient(self.basis.apply(nodes), self.center)
+        self._last = (np.asarray(nodes, dtype=np.float64).tobytes(), v)
         return v, self.basis.apply_transpose(dv_dp)
 
     def parts(self, bodies: Bodies) -> tuple[list[_Part], np.ndarray]:
