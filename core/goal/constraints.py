@@ -35,11 +35,14 @@ from ..io.repair import body_labels, compact
 from ..lattice import Lattice, PointBasis
 from ..localbasis import LocalPointBasis
 from ..mesh import TriMesh
-from ..volume import MomentOperator, VolumeOperator
+from ..volume import MomentOperator, VolumeOperator, locality_order
 from .spec import Goal
 
 #: the centroid is held to this fraction of the volume tolerance, in object sizes
 CENTROID_SCALE = 0.1
+#: a level with at least this many triangles keeps its basis and operators in
+#: :func:`isochor.core.volume.locality_order` (see :class:`Level`)
+LOCALITY_TRIANGLES = 100_000
 
 
 @dataclass(frozen=True)
@@ -100,17 +103,42 @@ class _Part:
 
 class Level:
     """What one pyramid level needs for fast evaluations, computed once; the parts that
-    only some goals use (shells, first moment) on first use."""
+    only some goals use (shells, first moment) on first use.
+
+    A big level (:data:`LOCALITY_TRIANGLES`) keeps its basis, volume and moment operators
+    over its vertices in :func:`isochor.core.volume.locality_order` (``order``; the faces
+    renumbered to match): the volume's gathers stay in the caches. Only :meth:`deform`
+    gives points, in the mesh's own order."""
 
     def __init__(self, lattice: Lattice, mesh: TriMesh, center: np.ndarray) -> None:
         self.lattice, self.mesh, self.center = lattice, mesh, center
         self.triangles = mesh.n_faces
-        self.basis: PointBasis | LocalPointBasis = lattice.point_basis(mesh.vertices)
-        self.volume_op = VolumeOperator(mesh.faces, mesh.n_vertices)
+        self.order: np.ndarray | None = None
+        #: the faces over the basis's points (the mesh's own faces, or renumbered)
+        self.faces = mesh.faces
+        vertices = mesh.vertices
+        if mesh.n_faces >= LOCALITY_TRIANGLES:
+            self.order = order = locality_order(mesh.faces, mesh.n_vertices)
+            place = np.empty_like(order)
+            place[order] = np.arange(len(order))
+            self.faces, vertices = place[mesh.faces], mesh.vertices[order]
+            del place
+        self.basis: PointBasis | LocalPointBasis = lattice.point_basis(vertices)
+        del vertices
+        self.volume_op = VolumeOperator(self.faces, mesh.n_vertices)
         self._last: tuple[bytes | None, float] = (None, 0.0)
         self._parts: tuple[list[_Part], np.ndarray] | None = None
         self._rest_bodies: np.ndarray | None = None
         self.rest_volume = self.volume(lattice.rest_nodes)
+
+    def deform(self, nodes: np.ndarray) -> np.ndarray:
+        """(m, 3) the level's vertices moved by ``nodes``, in the mesh's order."""
+        points = self.basis.apply(nodes)
+        if self.order is None:
+            return points
+        out = np.empty_like(points)
+        out[self.order] = points
+        return out
 
     def volume(self, nodes: np.ndarray) -> float:
         # One-entry memo: the stopping test and the result ask the full mesh for the
@@ -159,12 +187,13 @@ class Level:
 
     @cached_property
     def moment_op(self) -> MomentOperator:
-        return MomentOperator(self.mesh.faces, self.mesh.n_vertices)
+        return MomentOperator(self.faces, self.mesh.n_vertices)
 
     @cached_property
     def rest_centroid(self) -> np.ndarray:
         """Centre of mass at rest, relative to ``center``."""
-        m, _ = self.moment_op.value_and_gradient(self.mesh.vertices, self.center)
+        v = self.mesh.vertices if self.order is None else self.mesh.vertices[self.order]
+        m, _ = self.moment_op.value_and_gradient(v, self.center)
         return m / self.rest_volume
 
     def moment_and_gradient(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
