@@ -191,7 +191,9 @@ class VolumeOperator:
     """
 
     def __init__(self, faces: np.ndarray, n_vertices: int) -> None:
-        self.faces = np.ascontiguousarray(faces, dtype=np.int64)
+        faces = np.asarray(faces)
+        # int32 faces are kept as they are (a big level's own, renumbered ones)
+        self.faces = np.ascontiguousarray(faces, np.int32 if faces.dtype == np.int32 else np.int64)
         self.n_vertices = n = int(n_vertices)
         f = len(self.faces)
         # int32 where the vertices allow: half the bytes the volume reads (12 a triangle)
