@@ -123,7 +123,7 @@ class PointBasis:
             buv_t = (bu.T[:, None, :] * bv.T[None, :, :]).reshape(l * m, p)
             bw_t = np.ascontiguousarray(bw.T)
             dense_t = None
-            if self._dense:
+            if self._dense and not self._factored:  # (between the limits: on demand, below)
                 dense_t = (buv_t[:, None, :] * bw_t[None, :, :]).reshape(l * m * n, p)
             factored = (buv_t, bw_t) if self._factored else (None, None)
             tables = self._tables = (dense_t, *factored)
@@ -131,8 +131,15 @@ class PointBasis:
 
     @property
     def dense(self) -> np.ndarray | None:
-        """(p, nodes) the dense basis matrix of a small point set, else None."""
-        dense_t = self._built()[0]
+        """(p, nodes) the dense basis matrix of a small point set, else None. Between
+        ``DENSE_FASTER`` and ``DENSE_LIMIT`` entries it is made on the first ask (the
+        evaluations use the factored form: a level that is only measured, such as the
+        full mesh of most solves, never builds it)."""
+        dense_t, buv_t, bw_t = self._built()
+        if dense_t is None and self._dense:
+            l, m, n = self.shape
+            dense_t = (buv_t[:, None, :] * bw_t[None, :, :]).reshape(l * m * n, self.n_points)
+            self._tables = (dense_t, buv_t, bw_t)
         return None if dense_t is None else dense_t.T
 
     @property
