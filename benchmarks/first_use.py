@@ -228,7 +228,7 @@ def _evaluation_row(repeats: int) -> Row:
     mesh = torus(*SCALE_TORI[1048576])
     row = scale_row(mesh, (3, 3, 3), repeats, reference=False)
     ptr, seq = kernels.fans(mesh.faces, mesh.n_vertices)
-    uvw = Lattice.around(mesh.vertices, (3, 3, 3)).basis(mesh.vertices).uvw
+    uvw = Lattice.around(mesh.vertices, (3, 3, 3)).point_basis(mesh.vertices).uvw
     need = uvw.nbytes + ptr.nbytes + seq.nbytes
     bandwidth = read_bandwidth(repeats)
     floor = need / bandwidth

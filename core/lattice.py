@@ -53,10 +53,20 @@ def bernstein(degree: int, t: np.ndarray) -> np.ndarray:
     -------
     (p, degree + 1) float64
     """
-    t = np.asarray(t, dtype=np.float64)[:, None]
-    i = np.arange(degree + 1)
-    coef = np.array([comb(degree, k) for k in i], dtype=np.float64)
-    return coef * t**i * (1.0 - t) ** (degree - i)
+    t = np.asarray(t, dtype=np.float64)
+    s = 1.0 - t
+    # powers by repeated products (integer powers through np.power were most of a small
+    # level's basis set-up): up[i] = t**i, down[i] = s**(degree - i)
+    up = np.empty((degree + 1, len(t)))
+    down = np.empty((degree + 1, len(t)))
+    up[0] = 1.0
+    down[degree] = 1.0
+    for i in range(1, degree + 1):
+        np.multiply(up[i - 1], t, out=up[i])
+        np.multiply(down[degree - i + 1], s, out=down[degree - i])
+    up *= down
+    up *= np.array([comb(degree, k) for k in range(degree + 1)], dtype=np.float64)[:, None]
+    return up.T
 
 
 def bernstein_derivative(degree: int, t: np.ndarray) -> np.ndarray:
@@ -113,7 +123,7 @@ class PointBasis:
             buv_t = (bu.T[:, None, :] * bv.T[None, :, :]).reshape(l * m, p)
             bw_t = np.ascontiguousarray(bw.T)
             dense_t = None
-            if self._dense:
+            if self._dense and not self._factored:  # (between the limits: on demand, below)
                 dense_t = (buv_t[:, None, :] * bw_t[None, :, :]).reshape(l * m * n, p)
             factored = (buv_t, bw_t) if self._factored else (None, None)
             tables = self._tables = (dense_t, *factored)
@@ -121,8 +131,15 @@ class PointBasis:
 
     @property
     def dense(self) -> np.ndarray | None:
-        """(p, nodes) the dense basis matrix of a small point set, else None."""
-        dense_t = self._built()[0]
+        """(p, nodes) the dense basis matrix of a small point set, else None. Between
+        ``DENSE_FASTER`` and ``DENSE_LIMIT`` entries it is made on the first ask (the
+        evaluations use the factored form: a level that is only measured, such as the
+        full mesh of most solves, never builds it)."""
+        dense_t, buv_t, bw_t = self._built()
+        if dense_t is None and self._dense:
+            l, m, n = self.shape
+            dense_t = (buv_t[:, None, :] * bw_t[None, :, :]).reshape(l * m * n, self.n_points)
+            self._tables = (dense_t, buv_t, bw_t)
         return None if dense_t is None else dense_t.T
 
     @property

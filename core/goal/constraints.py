@@ -35,11 +35,14 @@ from ..io.repair import body_labels, compact
 from ..lattice import Lattice, PointBasis
 from ..localbasis import LocalPointBasis
 from ..mesh import TriMesh
-from ..volume import MomentOperator, VolumeOperator
+from ..volume import MomentOperator, VolumeOperator, locality_order
 from .spec import Goal
 
 #: the centroid is held to this fraction of the volume tolerance, in object sizes
 CENTROID_SCALE = 0.1
+#: a level with at least this many triangles keeps its basis and operators in
+#: :func:`isochor.core.volume.locality_order` (see :class:`Level`)
+LOCALITY_TRIANGLES = 100_000
 
 
 @dataclass(frozen=True)
@@ -100,28 +103,60 @@ class _Part:
 
 class Level:
     """What one pyramid level needs for fast evaluations, computed once; the parts that
-    only some goals use (shells, first moment) on first use."""
+    only some goals use (shells, first moment) on first use.
+
+    A big level (:data:`LOCALITY_TRIANGLES`) keeps its basis, volume and moment operators
+    over its vertices in :func:`isochor.core.volume.locality_order` (``order``; the faces
+    renumbered to match): the volume's gathers stay in the caches. Only :meth:`deform`
+    gives points, in the mesh's own order."""
 
     def __init__(self, lattice: Lattice, mesh: TriMesh, center: np.ndarray) -> None:
         self.lattice, self.mesh, self.center = lattice, mesh, center
         self.triangles = mesh.n_faces
-        self.basis: PointBasis | LocalPointBasis = lattice.point_basis(mesh.vertices)
-        self.volume_op = VolumeOperator(mesh.faces, mesh.n_vertices)
+        self.order: np.ndarray | None = None
+        #: the faces over the basis's points (the mesh's own faces, or renumbered)
+        self.faces = mesh.faces
+        vertices = mesh.vertices
+        if mesh.n_faces >= LOCALITY_TRIANGLES:
+            self.order = order = locality_order(mesh.faces, mesh.n_vertices)
+            # int32: the renumbered faces cost 12 bytes a triangle, not 24
+            place = np.empty(len(order), np.int32 if len(order) < 2**31 else np.int64)
+            place[order] = np.arange(len(order))
+            self.faces, vertices = place[mesh.faces], mesh.vertices[order]
+            del place
+        self.basis: PointBasis | LocalPointBasis = lattice.point_basis(vertices)
+        del vertices
+        self.volume_op = VolumeOperator(self.faces, mesh.n_vertices)
         self._last: tuple[bytes | None, float] = (None, 0.0)
         self._parts: tuple[list[_Part], np.ndarray] | None = None
         self._rest_bodies: np.ndarray | None = None
         self.rest_volume = self.volume(lattice.rest_nodes)
 
+    def deform(self, nodes: np.ndarray) -> np.ndarray:
+        """(m, 3) the level's vertices moved by ``nodes``, in the mesh's order."""
+        points = self.basis.apply(nodes)
+        if self.order is None:
+            return points
+        out = np.empty_like(points)
+        out[self.order] = points
+        return out
+
     def volume(self, nodes: np.ndarray) -> float:
         # One-entry memo: the stopping test and the result ask the full mesh for the
         # volume of the same nodes, and on a big mesh that is the costliest call there is.
-        key = nodes.tobytes()
-        if self._last[0] != key:
-            self._last = (key, self.volume_op(self.basis.apply(nodes), self.center))
-        return self._last[1]
+        # The solver's last evaluation fills it too (:meth:`volume_and_gradient`): a
+        # level's end asks for the volume where its last step was evaluated.
+        key = np.asarray(nodes, dtype=np.float64).tobytes()
+        last = self._last
+        if last[0] == key:
+            return last[1]
+        v = self.volume_op(self.basis.apply(nodes), self.center)
+        self._last = (key, v)
+        return v
 
     def volume_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
         v, dv_dp = self.volume_op.value_and_gradient(self.basis.apply(nodes), self.center)
+        self._last = (np.asarray(nodes, dtype=np.float64).tobytes(), v)
         return v, self.basis.apply_transpose(dv_dp)
 
     def parts(self, bodies: Bodies) -> tuple[list[_Part], np.ndarray]:
@@ -153,12 +188,13 @@ class Level:
 
     @cached_property
     def moment_op(self) -> MomentOperator:
-        return MomentOperator(self.mesh.faces, self.mesh.n_vertices)
+        return MomentOperator(self.faces, self.mesh.n_vertices)
 
     @cached_property
     def rest_centroid(self) -> np.ndarray:
         """Centre of mass at rest, relative to ``center``."""
-        m, _ = self.moment_op.value_and_gradient(self.mesh.vertices, self.center)
+        v = self.mesh.vertices if self.order is None else self.mesh.vertices[self.order]
+        m, _ = self.moment_op.value_and_gradient(v, self.center)
         return m / self.rest_volume
 
     def moment_and_gradient(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -348,11 +348,13 @@ def volume_gradient(fan, rows: np.ndarray, center, k=None):
 
 @_guard
 def face_volume(corners: np.ndarray, rows: np.ndarray, center, k=None) -> float | None:
-    """The signed volume of the faces (3, f) (int64 rows, every index checked to lie in
-    0..m by the caller) of (3, m) vertex rows; None: no kernels."""
+    """The signed volume of the faces (3, f) (int32 rows, or converted; every index
+    checked to lie in 0..m by the caller) of (3, m) vertex rows; None: no kernels (or
+    more vertices than int32 numbers)."""
     k = k or _kernels(corners.shape[1])
-    if k is None:
+    if k is None or rows.shape[1] > np.iinfo(np.int32).max:
         return None
+    corners = np.ascontiguousarray(corners, dtype=np.int32)
     c = np.zeros(3) if center is None else np.asarray(center, dtype=np.float64).reshape(3)
     f0, f1, f2 = corners
     ranges = _chunks(corners.shape[1], _FACE_CHUNK)

@@ -160,7 +160,7 @@ class EmbeddedSurface:
 
     def deform(self, nodes: np.ndarray, level: int = -1) -> np.ndarray:
         """(m, 3) vertices of a level deformed by ``nodes``."""
-        return self.level(level).basis.apply(np.asarray(nodes, dtype=np.float64))
+        return self.level(level).deform(np.asarray(nodes, dtype=np.float64))
 
 
 def live_level(surface: EmbeddedSurface, triangles: int) -> int:
