@@ -25,6 +25,7 @@ import numpy as np
 
 from .errors import IsochorError
 from .io.atomic import check_outputs, write_outputs
+from .io.companions import model_inputs
 from .io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
 from .io.meshio import mesh_bytes
 from .io.plyheader import PlyHeader
@@ -113,8 +114,10 @@ def export_file(
     made from (checked before any work); returns the notes for the user. The window's
     Export and the API's ``Session.export`` (the command line writes it with its report,
     as a set)."""
+    inputs = problem.scenario.inputs()  # the scenario, the model and the files it reads
     source = problem.model.source
-    inputs = [(source.path, "the model")] if source is not None else []
+    if source is not None:
+        inputs += model_inputs(source.path)
     output = check_outputs([(path, "the export")], inputs, probe=False)[0]
     exported = export_bytes(problem, nodes, path, morph_target=morph_target)
     write_outputs([(output, exported.data)])

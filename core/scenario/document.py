@@ -59,6 +59,7 @@ from ..errors import IsochorError
 from ..goal.handles import Handle
 from ..goal.spec import GOAL_FIELDS, Goal
 from ..io.atomic import atomic_write_text
+from ..io.companions import model_inputs
 from ..io.formats import is_model
 from ..lattice import MAX_NODES, MIN_NODES
 from ..validate import (
@@ -276,7 +277,18 @@ class Scenario:
                 doc["model"]["path"] = os.path.relpath(src, os.path.abspath(path.parent))
             except ValueError:  # another drive on Windows
                 doc["model"]["path"] = str(src)
-        atomic_write_text(path, json.dumps(doc, indent=2) + "\n")
+        # never over the model or a file it reads (its material library, a buffer...)
+        atomic_write_text(path, json.dumps(doc, indent=2) + "\n", self.inputs(scenario=False))
+
+    def inputs(self, *, scenario: bool = True) -> list[tuple[Path, str]]:
+        """``(path, role)`` of every file this scenario reads: the scenario file itself
+        (with ``scenario``, when it was read from one), the model and the files the model
+        reads (:func:`isochor.core.io.companions.model_inputs`). No output may name one
+        (:func:`isochor.core.io.atomic.check_outputs`)."""
+        found = [(self.source, "the scenario")] if scenario and self.source is not None else []
+        if "path" in self.model:
+            found += model_inputs(self.model_path())
+        return found
 
     def model_path(self) -> Path:
         """The model file as an absolute path (relative paths are taken from the
