@@ -9,6 +9,8 @@
 - :mod:`.roundtrip` rewrite an OBJ/PLY/STL/OFF file: positions deformed, all else kept
 - :mod:`.gltf`      read glTF/GLB; rewrite it deformed, or with a morph target
 - :mod:`.gltfanim`  a solved sequence as one GLB: a morph target per frame, weights animated
+- :mod:`.companions` the files a model reads besides itself (mtllib, textures, glTF
+  buffers and images), which no output may name; glTF URIs confined to the model's folder
 - :mod:`.atomic`    outputs checked before any work (never an input, a device, a folder), then
   written all or none through temporary files and renames
 
