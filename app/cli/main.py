@@ -318,6 +318,14 @@ def _solve(args: argparse.Namespace) -> int:
     interrupts.check()
     report = session.report_for(source, total)
     report["export_notes"] = list(exported.notes) if exported is not None else []
+    if exported is not None and exported.volume is not None:
+        # the volume the written file holds (its coordinates rounded as stored)
+        report["written"] = {
+            "file": str(args.out),
+            "volume": exported.volume,
+            "float32": exported.single,
+            "volume_error": (exported.volume - result.volume_target) / abs(result.volume_original),
+        }
     # everything is computed before anything is written: an error or a signal up to here
     # leaves no file; then the outputs are written as a set, all or none
     files = []
@@ -333,7 +341,7 @@ def _solve(args: argparse.Namespace) -> int:
     if (late := interrupts.finish()) is not None:
         return interrupts.answer_late(late, [o.path for o in outputs])
     for note in exported.notes if exported is not None else ():
-        print(f"isochor: note: {note}", file=sys.stderr)
+        print(f"isochor: {_note(note)}", file=sys.stderr)
     _summary(result, args, console)
     if result.converged and not result.handles_met:  # the best fit, said as a warning
         print(f"isochor: warning: {result.message}", file=sys.stderr)
@@ -393,6 +401,11 @@ def run_solve(session: Session, out: TextIO | None = None) -> SolveResult:
             last[0] = p.elapsed
 
     return run_to_end(run, row)
+
+
+def _note(note: str) -> str:
+    """An export's note as its line: ``warning: ...`` ones stay warnings."""
+    return note if note.startswith("warning: ") else f"note: {note}"
 
 
 def _summary(result: SolveResult, args: argparse.Namespace, out: PipeSafe) -> None:

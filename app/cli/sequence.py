@@ -88,7 +88,8 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
     if (late := interrupts.finish()) is not None:
         return interrupts.answer_late(late, [o.path for o in outputs])
     for note in notes:
-        print(f"isochor: note: {note}", file=sys.stderr)
+        shown = note if note.startswith("warning: ") else f"note: {note}"
+        print(f"isochor: {shown}", file=sys.stderr)
     if not args.quiet:
         worst = max(abs(f.result.rel_volume_error) for f in seq.frames)
         print(

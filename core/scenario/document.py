@@ -251,7 +251,12 @@ class Scenario:
         except (OSError, ValueError) as exc:  # ValueError: a NUL byte, a bad encoding
             raise IsochorError(f"{path}: cannot read the scenario ({exc})") from None
         try:
-            doc = json.loads(text, parse_int=parse_int, parse_constant=parse_constant)
+            doc = json.loads(
+                text,
+                parse_int=parse_int,
+                parse_constant=parse_constant,
+                object_pairs_hook=_unique_keys,
+            )
         except json.JSONDecodeError as exc:
             raise IsochorError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
         except RecursionError:
@@ -327,3 +332,15 @@ class Scenario:
     def with_(self, **changes) -> Scenario:
         """This scenario with some fields changed (the goal as a whole: ``goal=``)."""
         return replace(self, **changes)
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose keys are all different: a key given twice (the second silently
+    winning) is refused, naming it."""
+    doc: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in doc:
+            shown = key if len(key) <= 60 else key[:57] + "..."
+            raise IsochorError(f"the key {shown!r} is given twice in one object; give it once")
+        doc[key] = value
+    return doc
