@@ -57,6 +57,11 @@ def materialise(case: HardCase, folder: Path) -> list[str]:
     return [a.replace("@ABS@", str(folder)) for a in case.args]
 
 
+def _default_signals() -> None:
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_DFL)
+
+
 def run(case: HardCase, folder: Path) -> tuple[Run, bool]:
     """Run the case; with a signal, send it at its moment. Returns the run and whether
     the signal was sent while no output existed yet (so it had to stop the run)."""
@@ -71,6 +76,9 @@ def run(case: HardCase, folder: Path) -> tuple[Run, bool]:
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
+        # as from a terminal: the signals at their default (a campaign started with nohup
+        # would hand SIGHUP down ignored, and an ignored signal stays ignored)
+        preexec_fn=_default_signals,
     )
     early = False
     if case.signal is not None:
@@ -87,13 +95,20 @@ def run(case: HardCase, folder: Path) -> tuple[Run, bool]:
         out, err = proc.communicate()
         code = None
     return (
-        Run(args, code, out.decode("utf-8", "replace"), err.decode("utf-8", "replace"),
-            time.monotonic() - t0),  # fmt: skip
+        Run(
+            args,
+            code,
+            out.decode("utf-8", "replace"),
+            err.decode("utf-8", "replace"),
+            time.monotonic() - t0,
+        ),
         early,
     )
 
 
-def check(case: HardCase, index: int, root: Path) -> tuple[HardCase, int, Run, dict[str, list[str]]]:
+def check(
+    case: HardCase, index: int, root: Path
+) -> tuple[HardCase, int, Run, dict[str, list[str]]]:
     folder = root / f"case{index:05d}"
     folder.mkdir()
     problems: dict[str, list[str]] = {}
@@ -229,7 +244,9 @@ def main(argv=None) -> int:
             exits[(case.family, result.returncode)] += 1
             for kind, texts in problems.items():
                 counts[kind] += 1
-                failures.append(f"case {index} [{case.family}: {case.description}] {kind}: {texts[0]}")
+                failures.append(
+                    f"case {index} [{case.family}: {case.description}] {kind}: {texts[0]}"
+                )
                 print(failures[-1], flush=True)
             if n % 50 == 0:
                 print(f"... {n} cases, {time.monotonic() - t0:.0f} s, {dict(counts)}", flush=True)
@@ -241,8 +258,10 @@ def main(argv=None) -> int:
         "seconds": round(time.monotonic() - t0),
         "families": dict(families),
         "exits": {f"{f} {c}": n for (f, c), n in sorted(exits.items(), key=str)},
-        "problems": {k: counts.get(k, 0) for k in
-                     ("destroyed", "wrong", "traceback", "lost", "hang", "contract")},  # fmt: skip
+        "problems": {
+            k: counts.get(k, 0)
+            for k in ("destroyed", "wrong", "traceback", "lost", "hang", "contract")
+        },
     }
     print(json.dumps(summary, indent=1))
     return 1 if failures else 0

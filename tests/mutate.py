@@ -624,7 +624,9 @@ def uri_case(rng: random.Random) -> HardCase:
     files["s.json"] = _scenario_text({"path": "model.gltf"}, rng)
     links = [("symlink", "link.bin", "/etc/hostname")] if uri == "link.bin" else []
     args = ["s.json", "--out", "o.glb", "--report", "r.json"]
-    return HardCase("uri", f"{kind} uri {uri!r}", files, args, [], "refused", "is refused", links=links)
+    return HardCase(
+        "uri", f"{kind} uri {uri!r}", files, args, [], "refused", "is refused", links=links
+    )
 
 
 def duplicate_key_case(rng: random.Random) -> HardCase:
@@ -636,13 +638,24 @@ def duplicate_key_case(rng: random.Random) -> HardCase:
             f'"padding": 0.05, "{key}": {json.dumps([2, 2, 2] if key == "nodes" else 0.1)}}}}}'
         )
     else:
-        base = {"model": {"builtin": "sphere", "n_levels": 2}, "lattice": {"nodes": [3, 3, 3]},
-                "moves": [], "target_volume_ratio": 1.0}  # fmt: skip
+        base = {
+            "model": {"builtin": "sphere", "n_levels": 2},
+            "lattice": {"nodes": [3, 3, 3]},
+            "moves": [],
+            "target_volume_ratio": 1.0,
+        }
         body = json.dumps(base)[1:-1]
         text = "{" + body + f', "{key}": {json.dumps(base[key])}' + "}"
     args = ["s.json", "--out", "o.ply", "--report", "r.json"]
-    return HardCase("dupkey", f"{key} twice", {"s.json": text.encode()}, args, [], "refused",
-                    f"'{key}' is given twice")  # fmt: skip
+    return HardCase(
+        "dupkey",
+        f"{key} twice",
+        {"s.json": text.encode()},
+        args,
+        [],
+        "refused",
+        f"'{key}' is given twice",
+    )
 
 
 def pinned_moved_case(rng: random.Random) -> HardCase:
@@ -656,8 +669,15 @@ def pinned_moved_case(rng: random.Random) -> HardCase:
         "pins": [pin],
     }
     args = ["s.json", "--out", "o.ply", "--report", "r.json"]
-    return HardCase("pinmove", f"node {node} pinned ({pin}) and moved",
-                    {"s.json": json.dumps(doc).encode()}, args, [], "refused", "is also moved")  # fmt: skip
+    return HardCase(
+        "pinmove",
+        f"node {node} pinned ({pin}) and moved",
+        {"s.json": json.dumps(doc).encode()},
+        args,
+        [],
+        "refused",
+        "is also moved",
+    )
 
 
 def far_case(rng: random.Random) -> HardCase:
@@ -671,13 +691,24 @@ def far_case(rng: random.Random) -> HardCase:
     v = mesh.vertices + offset
     fmt = rng.choice([".ply", ".obj", ".off"])
     files = {f"m{fmt}": mesh_bytes(TriMesh(v, mesh.faces), fmt)}
-    doc = {"model": {"path": f"m{fmt}"}, "lattice": {"nodes": [3, 3, 3]},
-           "moves": [{"node": [2, 2, 2], "by": [size / 8, 0, 0]}]}  # fmt: skip
+    doc = {
+        "model": {"path": f"m{fmt}"},
+        "lattice": {"nodes": [3, 3, 3]},
+        "moves": [{"node": [2, 2, 2], "by": [size / 8, 0, 0]}],
+    }
     files["s.json"] = json.dumps(doc).encode()
     args = ["s.json", "--out", "o.ply", "--report", "r.json", "--quiet"]
     truth = {"volume": size**3 / 8, "area": 2 * (size**2 / 2 + size**2 / 4 + size**2 / 8)}
-    return HardCase("far", f"box {size:g} at {offset:g} as {fmt}", files, args, ["o.ply", "r.json"],
-                    "solved", "too far from the origin", truth)  # fmt: skip
+    return HardCase(
+        "far",
+        f"box {size:g} at {offset:g} as {fmt}",
+        files,
+        args,
+        ["o.ply", "r.json"],
+        "solved",
+        "too far from the origin",
+        truth,
+    )
 
 
 def fold_case(rng: random.Random) -> HardCase:
@@ -692,12 +723,22 @@ def fold_case(rng: random.Random) -> HardCase:
         if any(mv["node"] == node for mv in moves):
             continue
         moves.append({"node": node, "by": [round(rng.uniform(-2.5, 2.5), 3) for _ in range(3)]})
-    doc = {"model": {"builtin": "sphere", "n_levels": 3}, "lattice": {"nodes": nodes},
-           "moves": moves, "target_volume_ratio": rng.choice([1.0, 0.3, 0.1, 0.05, 2.0])}  # fmt: skip
+    doc = {
+        "model": {"builtin": "sphere", "n_levels": 3},
+        "lattice": {"nodes": nodes},
+        "moves": moves,
+        "target_volume_ratio": rng.choice([1.0, 0.3, 0.1, 0.05, 2.0]),
+    }
     args = ["s.json", "--out", "o.ply", "--report", "r.json", "--quiet"]
-    return HardCase("fold", f"sphere {nodes} {moves} x{doc['target_volume_ratio']}",
-                    {"s.json": json.dumps(doc).encode()}, args, ["o.ply", "r.json"], "solved",
-                    truth={"scenario": doc})  # fmt: skip
+    return HardCase(
+        "fold",
+        f"sphere {nodes} {moves} x{doc['target_volume_ratio']}",
+        {"s.json": json.dumps(doc).encode()},
+        args,
+        ["o.ply", "r.json"],
+        "solved",
+        truth={"scenario": doc},
+    )
 
 
 def float32_case(rng: random.Random) -> HardCase:
@@ -706,13 +747,23 @@ def float32_case(rng: random.Random) -> HardCase:
     mesh = box((1.0, 1.0, thick))
     v = mesh.vertices + rng.choice([0.0, 10.0, 1000.0, 1e5])
     files = {"m.ply": mesh_bytes(TriMesh(v, mesh.faces), ".ply")}
-    doc = {"model": {"path": "m.ply"}, "lattice": {"nodes": [3, 3, 2]},
-           "moves": [{"node": [2, 2, 1], "by": [0.1, 0, 0]}]}  # fmt: skip
+    doc = {
+        "model": {"path": "m.ply"},
+        "lattice": {"nodes": [3, 3, 2]},
+        "moves": [{"node": [2, 2, 1], "by": [0.1, 0, 0]}],
+    }
     files["s.json"] = json.dumps(doc).encode()
     out = rng.choice(["o.stl", "o.glb", "o.ply"])
     args = ["s.json", "--out", out, "--report", "r.json", "--quiet"]
-    return HardCase("float32", f"box 1x1x{thick:.2g} to {out}", files, args, [out, "r.json"],
-                    "solved", truth={"out": out})  # fmt: skip
+    return HardCase(
+        "float32",
+        f"box 1x1x{thick:.2g} to {out}",
+        files,
+        args,
+        [out, "r.json"],
+        "solved",
+        truth={"out": out},
+    )
 
 
 def signal_case(rng: random.Random) -> HardCase:
@@ -721,9 +772,12 @@ def signal_case(rng: random.Random) -> HardCase:
     import signal as _signal
 
     files = {"m.obj": mesh_bytes(icosphere(rng.choice([3, 4])), ".obj")}
-    doc: dict[str, Any] = {"version": 3, "model": {"path": "m.obj"},
-                           "lattice": {"nodes": [4, 4, 4], "padding": 0.05},
-                           "moves": [{"node": [3, 3, 3], "by": [0.8, 0.8, 0.0]}]}  # fmt: skip
+    doc: dict[str, Any] = {
+        "version": 3,
+        "model": {"path": "m.obj"},
+        "lattice": {"nodes": [4, 4, 4], "padding": 0.05},
+        "moves": [{"node": [3, 3, 3], "by": [0.8, 0.8, 0.0]}],
+    }
     sequence = rng.random() < 0.3
     if sequence:
         doc["poses"] = [
@@ -738,8 +792,15 @@ def signal_case(rng: random.Random) -> HardCase:
     files["s.json"] = json.dumps(doc).encode()
     sig = rng.choice([_signal.SIGINT, _signal.SIGTERM, _signal.SIGHUP])
     delay = rng.uniform(0.0, 6.0)
-    return HardCase("signal", f"{sig.name} at {delay:.3f} s{' (sequence)' if sequence else ''}",
-                    files, args, outputs, "signal", signal=(int(sig), delay))  # fmt: skip
+    return HardCase(
+        "signal",
+        f"{sig.name} at {delay:.3f} s{' (sequence)' if sequence else ''}",
+        files,
+        args,
+        outputs,
+        "signal",
+        signal=(int(sig), delay),
+    )
 
 
 HARD_FAMILIES: dict[str, Callable[[random.Random], HardCase]] = {

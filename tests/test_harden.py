@@ -22,7 +22,8 @@ from isochor.core.mesh import TriMesh
 from isochor.core.scenario.document import Scenario
 from isochor.core.volume import signed_volume
 from tests.models import box, icosphere
-from tests.test_contract import check, isochor as run_isochor, snapshot, write_json
+from tests.test_contract import check, snapshot, write_json
+from tests.test_contract import isochor as run_isochor
 
 
 # -- every file an input uses ------------------------------------------------------------

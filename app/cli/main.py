@@ -113,16 +113,15 @@ def entry() -> NoReturn:
     with its status, its output flushed: an interpreter shutting down under a thread
     inside a C extension's initialisation can crash (a SIGTERM once ended with a
     segmentation fault, exit -11)."""
+    import contextlib
     import threading
 
     status = main()
     interrupts.ignore()
     if threading.active_count() > 1:
         for stream in (sys.stdout, sys.stderr):
-            try:
+            with contextlib.suppress(OSError, ValueError):
                 stream.flush()
-            except (OSError, ValueError):
-                pass
         os._exit(status if isinstance(status, int) else EXIT_ERROR)
     sys.exit(status)
 

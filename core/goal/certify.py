@@ -185,7 +185,11 @@ class Occupancy:
     """
 
     def __init__(
-        self, lattice: Lattice, vertices: np.ndarray, faces: np.ndarray, cells: int = OCCUPANCY_CELLS
+        self,
+        lattice: Lattice,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        cells: int = OCCUPANCY_CELLS,
     ) -> None:
         self.cells = int(cells)
         self._inputs: tuple | None = (lattice, vertices, faces)

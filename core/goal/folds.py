@@ -232,7 +232,9 @@ class FoldCheck:
         vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
         #: where the solid is, for the proof (:mod:`.certify`); needs the faces
         self._occupancy = (
-            Occupancy(lattice, vertices, faces) if faces is not None and supported(lattice) else None
+            Occupancy(lattice, vertices, faces)
+            if faces is not None and supported(lattice)
+            else None
         )
         interior = np.asarray(interior, dtype=np.float64).reshape(-1, 3)
         self.n_vertices, self.n_interior = len(vertices), len(interior)

@@ -31,9 +31,7 @@ MAX_SCAN_BYTES = 512 * 2**20
 
 _MTLLIB = re.compile(rb"^[ \t]*mtllib[ \t]+([^\r\n#]*)", re.M)
 #: a material library's statements that name a file (the file name comes last)
-_MAPS = re.compile(
-    rb"^[ \t]*(?:map_\w+|bump|disp|decal|refl|norm)[ \t]+([^\r\n#]*)", re.M | re.I
-)
+_MAPS = re.compile(rb"^[ \t]*(?:map_\w+|bump|disp|decal|refl|norm)[ \t]+([^\r\n#]*)", re.M | re.I)
 _URI_SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*:")
 
 
