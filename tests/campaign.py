@@ -18,6 +18,7 @@ command line's contract (tests/test_contract.py). A small seeded subset runs in 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import shutil
@@ -62,12 +63,53 @@ def _default_signals() -> None:
         signal.signal(sig, signal.SIG_DFL)
 
 
-def run(case: HardCase, folder: Path) -> tuple[Run, bool]:
+def forked(args: list[str], folder: Path) -> Run:
+    """``isochor ARGS`` in a child forked from this (single-threaded) process, where
+    Isochor and its libraries are imported already: the command line's ``main`` as the
+    console script runs it, its standard output and error in files beside the folder.
+    (A fresh interpreter per case costs seconds of imports on a loaded machine; the signal
+    family keeps fresh interpreters, whose start-up it must cover.)"""
+    out_path = folder.parent / f"{folder.name}.stdout"
+    err_path = folder.parent / f"{folder.name}.stderr"
+    t0 = time.monotonic()
+    pid = os.fork()
+    if pid == 0:  # the child
+        status = 70
+        try:
+            os.chdir(folder)
+            for fd, path in ((1, out_path), (2, err_path)):
+                os.dup2(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644), fd)
+            from isochor.app.cli.main import main as cli_main
+
+            status = cli_main(args)
+        finally:
+            with contextlib.suppress(Exception):
+                sys.stdout.flush()
+                sys.stderr.flush()
+            os._exit(status if isinstance(status, int) else 70)
+    deadline = t0 + TIMEOUT
+    code = None
+    while time.monotonic() < deadline:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            code = os.waitstatus_to_exitcode(status)
+            break
+        time.sleep(0.02)
+    else:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+    text = [p.read_text("utf-8", "replace") if p.exists() else "" for p in (out_path, err_path)]
+    return Run(args, code, text[0], text[1], time.monotonic() - t0)
+
+
+def run(case: HardCase, folder: Path, fork: bool = False) -> tuple[Run, bool]:
     """Run the case; with a signal, send it at its moment. Returns the run and whether
     the signal was sent while no output existed yet (so it had to stop the run)."""
     args = ["solve", *materialise(case, folder)]
     # a file outside the model's folder that a crafted URI might read
     (folder.parent / f"{folder.name}-outside.bin").write_bytes(b"secret")
+    if fork and case.signal is None:
+        return forked(args, folder), False
     t0 = time.monotonic()
     proc = subprocess.Popen(
         [sys.executable, "-m", "isochor", *args],
@@ -107,7 +149,7 @@ def run(case: HardCase, folder: Path) -> tuple[Run, bool]:
 
 
 def check(
-    case: HardCase, index: int, root: Path
+    case: HardCase, index: int, root: Path, fork: bool = False
 ) -> tuple[HardCase, int, Run, dict[str, list[str]]]:
     folder = root / f"case{index:05d}"
     folder.mkdir()
@@ -117,7 +159,7 @@ def check(
     before = snapshot(folder)
     shutil.rmtree(folder)
     folder.mkdir()
-    result, early = run(case, folder)
+    result, early = run(case, folder, fork)
     after = snapshot(folder)
 
     def add(kind: str, text: str) -> None:
@@ -228,8 +270,26 @@ def main(argv=None) -> int:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--keep", action="store_true", help="keep the case folders")
     parser.add_argument("--only", default="", help="comma-separated case indices")
+    parser.add_argument(
+        "--part", default="1/1", help="K/N: this process runs every N-th case from K-1"
+    )
+    parser.add_argument(
+        "--fork",
+        action="store_true",
+        help="run the cases without a signal in children forked from this process (one "
+        "case at a time per process: run several --part processes in parallel)",
+    )
     args = parser.parse_args(argv)
     indices = [int(i) for i in args.only.split(",") if i] or list(range(args.cases))
+    k, n = (int(x) for x in args.part.split("/"))
+    indices = indices[k - 1 :: n]
+    if args.fork:
+        args.workers = 1  # fork from one thread only
+        import scipy.ndimage  # noqa: F401  (imported once, before the children)
+        import trimesh  # noqa: F401
+
+        import isochor.app.cli.main
+        import isochor.core.api  # noqa: F401
     root = Path(tempfile.mkdtemp(prefix="isochor-campaign-"))
     t0 = time.monotonic()
     counts: Counter = Counter()
@@ -237,7 +297,7 @@ def main(argv=None) -> int:
     exits: Counter = Counter()
     failures = []
     with ThreadPoolExecutor(max_workers=args.workers) as pool:
-        jobs = [pool.submit(check, hard_case(args.seed, i), i, root) for i in indices]
+        jobs = [pool.submit(check, hard_case(args.seed, i), i, root, args.fork) for i in indices]
         for n, job in enumerate(jobs, 1):
             case, index, result, problems = job.result()
             families[case.family] += 1
@@ -253,7 +313,8 @@ def main(argv=None) -> int:
     if not args.keep:
         shutil.rmtree(root, ignore_errors=True)
     summary = {
-        "command": f"python -m tests.campaign --cases {args.cases} --seed {args.seed}",
+        "command": f"python -m tests.campaign --cases {args.cases} --seed {args.seed} "
+        f"--part {args.part}{' --fork' if args.fork else ''}",
         "cases": len(indices),
         "seconds": round(time.monotonic() - t0),
         "families": dict(families),

@@ -115,6 +115,7 @@ def entry() -> NoReturn:
     segmentation fault, exit -11)."""
     import contextlib
     import threading
+    from os import _exit as end_now  # os's documented exit without interpreter shutdown
 
     status = main()
     interrupts.ignore()
@@ -122,7 +123,7 @@ def entry() -> NoReturn:
         for stream in (sys.stdout, sys.stderr):
             with contextlib.suppress(OSError, ValueError):
                 stream.flush()
-        os._exit(status if isinstance(status, int) else EXIT_ERROR)
+        end_now(status if isinstance(status, int) else EXIT_ERROR)
     sys.exit(status)
 
 
