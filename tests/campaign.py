@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from tests.mutate import HardCase, hard_case
-from tests.test_contract import ENV, Run, contract_problems, snapshot, temp_files
+from tests.test_contract import ENV, Run, _catching, contract_problems, snapshot, temp_files
 
 TIMEOUT = 180
 TOLERANCE = 0.0005  # the scenarios' default volume tolerance
@@ -124,8 +124,11 @@ def run(case: HardCase, folder: Path, fork: bool = False) -> tuple[Run, bool]:
     )
     early = False
     if case.signal is not None:
+        # the moment counts from when the program catches signals (Isochor's first line):
+        # before that the interpreter starts and no Python program can answer one
         sig, delay = case.signal
-        time.sleep(delay)
+        ready = _catching(proc, 60)
+        time.sleep(max(0.0, ready + delay - time.monotonic()))
         if proc.poll() is None:
             early = not any((folder / o).exists() for o in case.outputs)
             proc.send_signal(sig)
