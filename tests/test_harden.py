@@ -30,8 +30,8 @@ from tests.test_contract import isochor as run_isochor
 def _obj_with_library(folder: Path) -> Path:
     obj = mesh_bytes(icosphere(2), ".obj")
     (folder / "m.obj").write_bytes(b"mtllib m.mtl\n" + obj)
-    (folder / "m.mtl").write_text("newmtl a\nmap_Kd -s 1 1 1 wood.png\nbump bumps.png\n")
-    (folder / "wood.png").write_bytes(b"not really a png")
+    (folder / "m.mtl").write_text("newmtl a\nmap_Kd -s 1 1 1 wood map.png\nbump bumps.png\n")
+    (folder / "wood map.png").write_bytes(b"not really a png")
     (folder / "bumps.png").write_bytes(b"nor this")
     return folder / "m.obj"
 
@@ -54,7 +54,7 @@ def test_the_files_a_model_reads_are_listed(tmp_path):
     assert roles == {
         "m.obj": "the model",
         "m.mtl": "the model's material library m.mtl",
-        "wood.png": "the model's texture wood.png",
+        "wood map.png": "the model's texture wood map.png",
         "bumps.png": "the model's texture bumps.png",
     }
     gltf = {p.name for p, _ in model_inputs(_gltf_with_files(tmp_path))}
@@ -63,7 +63,7 @@ def test_the_files_a_model_reads_are_listed(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "spell", ["m.mtl", "./m.mtl", "sub/../wood.png", "link.mtl", "hard.png", "m.obj"]
+    "spell", ["m.mtl", "./m.mtl", "sub/../wood map.png", "link.mtl", "hard.png", "m.obj"]
 )
 def test_session_save_and_export_never_replace_a_file_the_model_reads(tmp_path, spell):
     _obj_with_library(tmp_path)
@@ -93,7 +93,7 @@ def test_the_command_line_never_replaces_a_buffer_or_a_library(tmp_path, role):
     write_json(tmp_path / "s.json", doc)
     for target in (buffer, "m.mtl"):
         if role == "--out" and target == "m.mtl":
-            target = "wood.png"
+            target = "wood map.png"
         before = snapshot(tmp_path)
         run = run_isochor("solve", "s.json", role, target, cwd=tmp_path)
         if target != buffer:  # the OBJ's files: the scenario on the OBJ

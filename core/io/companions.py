@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import stat
 import struct
 from pathlib import Path
 from urllib.parse import unquote
@@ -90,7 +91,17 @@ def confined(base_dir: str | Path | None, uri: str, what: str) -> Path:
 
 
 # -- OBJ ------------------------------------------------------------------------------------
+def _regular(path: Path) -> bool:
+    """A regular file (never open a FIFO or a device: reading one can block for ever)."""
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return False
+
+
 def _read_head(path: Path) -> bytes:
+    if not _regular(path):
+        return b""
     with open(path, "rb") as fh:
         return fh.read(MAX_SCAN_BYTES)
 
@@ -101,10 +112,14 @@ def _names(body: bytes, folder: Path) -> list[Path]:
     body = body.strip()
     if not body:
         return []
-    whole = folder / os.fsdecode(body)
-    if whole.is_file():
-        return [whole]
-    return [p for p in (folder / os.fsdecode(w) for w in body.split()) if p.is_file()]
+    words = body.split()
+    # the whole rest, or the rest after some options (-s 1 1 1 wood map.png): a name
+    # with spaces
+    for start in range(len(words)):
+        whole = folder / os.fsdecode(b" ".join(words[start:]))
+        if _regular(whole):
+            return [whole]
+    return [p for p in (folder / os.fsdecode(w) for w in words) if _regular(p)]
 
 
 def _obj_files(path: Path) -> list[tuple[Path, str]]:
@@ -132,6 +147,8 @@ def _textures(library: Path) -> list[Path]:
 
 # -- glTF -----------------------------------------------------------------------------------
 def _gltf_json(path: Path) -> dict:
+    if not _regular(path):
+        return {}
     if path.suffix.lower() == ".gltf":
         with open(path, "rb") as fh:
             text = fh.read(MAX_SCAN_BYTES)
@@ -161,6 +178,6 @@ def _gltf_files(path: Path) -> list[tuple[Path, str]]:
                 file = confined(path.parent, uri, what)
             except IsochorError:
                 continue  # never read: reading the model refuses it
-            if file.is_file():
+            if _regular(file):
                 found.append((file, f"the model's {what} {file.name}"))
     return found
