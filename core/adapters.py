@@ -34,8 +34,16 @@ class CallerMesh:
             self.faces = np.asarray(tri.faces, dtype=np.int64).reshape(-1, 4)[:, 1:]
         elif isinstance(mesh, Sequence) and len(mesh) == 2:
             self.kind = "arrays"
-            self.vertices = np.asarray(mesh[0], dtype=np.float64)
-            self.faces = np.asarray(mesh[1], dtype=np.int64)
+            try:
+                self.vertices = np.asarray(mesh[0], dtype=np.float64)
+                given = np.asarray(mesh[1])
+                self.faces = given.astype(np.int64)
+            except (TypeError, ValueError) as exc:
+                raise IsochorError(
+                    f"a mesh's vertices and faces must be arrays of numbers ({exc})"
+                ) from None
+            if given.size and not np.array_equal(self.faces, given):
+                raise IsochorError("the faces must be whole vertex indices (an integer array)")
         else:
             raise IsochorError(
                 "a mesh is (vertices, faces) arrays, a trimesh.Trimesh or a pyvista.PolyData"

@@ -155,7 +155,10 @@ class Session:
         by_keyword = {f.keyword: f for f in GOAL_FIELDS}
         for name in goal:
             if name not in by_keyword:
-                raise TypeError(f"Session() got an unexpected keyword argument {name!r}")
+                known = ", ".join(
+                    ["lattice", "padding", "frame", "basis", "outside", "progress", *by_keyword]
+                )
+                raise IsochorError(f"unknown keyword {name!r}; the known ones are {known}")
         if progress is not None and not callable(progress):
             raise IsochorError("progress must be a callable(stage, fraction), or None")
         #: ``callable(stage, fraction)`` told how far loading and each solve are, or None
@@ -230,8 +233,9 @@ class Session:
         if (by is None) == (to is None):
             raise IsochorError("move: give exactly one of by= or to=")
         r = self._row(node)
-        new = self.nodes[r] + np.asarray(by, float) if by is not None else np.asarray(to, float)
-        if new.shape != (3,) or not np.all(np.isfinite(new)):
+        given = _point(by if by is not None else to, f"move: node {tuple(node)}")
+        new = self.nodes[r] + given if by is not None else given
+        if not np.all(np.isfinite(new)):
             raise IsochorError(f"move: node {tuple(node)} needs three finite coordinates")
         self.nodes[r] = new
         self.fixed[r] = True
@@ -260,14 +264,17 @@ class Session:
         """Add a handle on the model's point ``at`` (rest coordinates) that the next solves
         put at ``to`` (by default where the current nodes put it: no change until moved).
         Returns its index in :attr:`handles`."""
+        at = _point(at, "add_handle: at")
         if to is None:
-            to = self.lattice.deform(np.reshape(np.asarray(at, dtype=float), (1, 3)), self.nodes)[0]
-        self.handles.append(Handle(at, to))
+            to = self.lattice.deform(at[None], self._checked_nodes())[0]
+        self.handles.append(Handle(at, _point(to, "add_handle: to")))
         return len(self.handles) - 1
 
     def key(self, frame: int, *, target: float | None = None) -> None:
         """Key the current edit (moved nodes, pins, handles; ``target``, or the session's
         target ratio) at ``frame``, replacing a key there."""
+        if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)) or frame < 0:
+            raise IsochorError(f"key: the frame must be a whole number >= 0, got {frame!r}")
         pose = Pose(int(frame), self.scenario().edit, target)
         self.poses = [p for p in self.poses if p.frame != pose.frame] + [pose]
         self.poses.sort(key=lambda p: p.frame)
@@ -291,13 +298,37 @@ class Session:
 
     def move_handle(self, index: int, to: Sequence[float]) -> None:
         """Send handle ``index`` to ``to``."""
-        self.handles[index] = self.handles[index].moved_to(to)
+        index = self._handle_index(index, "move_handle")
+        self.handles[index] = self.handles[index].moved_to(_point(to, "move_handle: to"))
+
+    def _handle_index(self, index: Any, what: str) -> int:
+        """``index`` checked as a handle's (one sentence naming ``what`` otherwise)."""
+        count = len(self.handles)
+        if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+            raise IsochorError(f"{what}: the index must be a whole number, got {index!r}")
+        if not -count <= index < count:
+            raise IsochorError(f"{what}: no handle {index}; there are {count} (see add_handle)")
+        return int(index)
+
+    def _checked_nodes(self) -> np.ndarray:
+        """The session's nodes, checked: a caller may have assigned :attr:`nodes`."""
+        shape = (self.lattice.n_nodes, 3)
+        try:
+            nodes = np.asarray(self.nodes, dtype=np.float64)
+        except (TypeError, ValueError):
+            nodes = None
+        if nodes is None or nodes.shape != shape or not np.all(np.isfinite(nodes)):
+            got = getattr(nodes, "shape", "not numbers")
+            raise IsochorError(
+                f"nodes: must be {shape[0]} x 3 finite numbers (the lattice's), got {got}"
+            )
+        return nodes
 
     def remove_handle(self, index: int) -> None:
         """Remove handle ``index``; the next solve gives what the remaining edit gives (the
         free coordinates start from rest again: started from the current nodes, the springs
         would keep the turn and shift the handle caused)."""
-        del self.handles[index]
+        del self.handles[self._handle_index(index, "remove_handle")]
         free = ~self.fixed
         self.nodes[free] = self.lattice.rest_nodes[free]
 
@@ -306,7 +337,9 @@ class Session:
         """Solve step by step: yields a :class:`~isochor.core.solve.records.Progress` record per
         inner step and level, returns the result; the session's nodes become the result's.
         Closing the generator stops the solve and keeps the nodes as they were."""
-        run = self.problem.solve(self.nodes, self.fixed, goal=self.goal, handles=self.handles)
+        run = self.problem.solve(
+            self._checked_nodes(), self.fixed, goal=self.goal, handles=self.handles
+        )
         if self.progress is not None:
             run = _reporting(run, self.progress)
         result = yield from run
@@ -338,7 +371,7 @@ class Session:
         for a file) moved by the current nodes."""
         full = self.problem.surface.full  # (its own vertices: never the caps over its holes)
         points = self._mesh.vertices if self._mesh is not None else full.own.vertices
-        return self.lattice.deform(points, self.nodes)
+        return self.lattice.deform(points, self._checked_nodes())
 
     @property
     def mesh(self) -> Any:
@@ -436,6 +469,8 @@ def _open(path: Path, progress: ProgressCallback | None = None) -> tuple[Scenari
 def load(path: str | Path, **options: Any) -> Session:
     """A :class:`Session` on a model (OBJ, PLY, STL, OFF, glTF) or a scenario file; the
     ``options`` are :class:`Session`'s."""
+    if not isinstance(path, (str, Path)):
+        raise IsochorError(f"load: give a file name (str or Path), got {type(path).__name__}")
     return Session(Path(path), **options)
 
 
@@ -474,19 +509,57 @@ def deform(
         ``.result``, ``.converged``.
     """
     session = Session(mesh, lattice, **options)
+    for name, given in (("moves", moves), ("pins", pins), ("handles", handles)):
+        if isinstance(given, (str, bytes)) or not isinstance(given, (Iterable, Mapping)):
+            raise IsochorError(f"deform: {name} must be a list (or a dict), got {given!r}")
     items = moves.items() if isinstance(moves, Mapping) else moves
     for item in items:
         if isinstance(item, Mapping):
-            session.move(tuple(item["node"]), by=item.get("by"), to=item.get("to"))
+            session.move(_node_of(item, "moves"), by=item.get("by"), to=item.get("to"))
         else:
-            node, offset = item
+            node, offset = _pair(item)
             session.move(node, by=offset)
     for pin in pins:
         if isinstance(pin, Mapping):
-            session.pin(tuple(pin["node"]), axes=pin.get("axes", "xyz"))
+            session.pin(_node_of(pin, "pins"), axes=pin.get("axes", "xyz"))
         else:
             session.pin(pin)
     for h in handles:
-        session.handles.append(Handle.of(h))
+        try:
+            session.handles.append(Handle.of(h))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise IsochorError(
+                f'handles: each is {{"at": [x, y, z], "to": [x, y, z]}}, got {h!r} ({exc})'
+            ) from None
     result = session.solve()
     return Deformed(session.mesh, session.report, result)
+
+
+def _point(value: Any, what: str) -> np.ndarray:
+    """``value`` as three floats, or one sentence saying what ``what`` needs."""
+    try:
+        point = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        point = None
+    if point is None or point.shape != (3,):
+        raise IsochorError(f"{what} needs three numbers (x, y, z), got {value!r}")
+    return point
+
+
+def _node_of(item: Mapping[str, Any], what: str) -> tuple:
+    if "node" not in item:
+        raise IsochorError(f'{what}: each needs "node": [i, j, k], got {dict(item)!r}')
+    try:
+        return tuple(item["node"])
+    except TypeError:
+        raise IsochorError(f'{what}: "node" must be [i, j, k], got {item["node"]!r}') from None
+
+
+def _pair(item: Any) -> tuple:
+    try:
+        node, offset = item
+    except (TypeError, ValueError):
+        raise IsochorError(
+            f"moves: each is ((i, j, k), (dx, dy, dz)) or a dict, got {item!r}"
+        ) from None
+    return node, offset

@@ -29,6 +29,7 @@ import numpy as np
 
 from .errors import IsochorError
 from .io.atomic import check_outputs, write_outputs
+from .io.companions import model_inputs
 from .io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
 from .io.meshio import mesh_bytes
 from .io.plyheader import PlyHeader
@@ -41,6 +42,11 @@ class Exported:
 
     data: bytes
     notes: list[str] = field(default_factory=list)
+    #: the volume of the model as the file stores it (its coordinates rounded as written:
+    #: float32 in STL and glTF), None for a mesh of the caller's own kind
+    volume: float | None = None
+    #: whether the file stores float32 coordinates
+    single: bool = False
 
 
 def export_bytes(
@@ -71,6 +77,15 @@ def export_bytes(
     if suffix not in WRITE_FORMATS:
         raise IsochorError(f"{path}: the file name must end in {listing(WRITE_FORMATS)}")
     nodes = np.asarray(nodes, dtype=np.float64)
+    exported = _export(problem, nodes, path, suffix, morph_target)
+    if morph_target:
+        return exported
+    return _with_written_volume(problem, nodes, path, exported)
+
+
+def _export(
+    problem: Problem, nodes: np.ndarray, path: Path, suffix: str, morph_target: bool
+) -> Exported:
     lattice = problem.surface.lattice
     source = problem.model.source
     same = source is not None and _kind(source.path.suffix) == _kind(suffix)
@@ -117,8 +132,10 @@ def export_file(
     made from (checked before any work); returns the notes for the user. The window's
     Export and the API's ``Session.export`` (the command line writes it with its report,
     as a set)."""
+    inputs = problem.scenario.inputs()  # the scenario, the model and the files it reads
     source = problem.model.source
-    inputs = [(source.path, "the model")] if source is not None else []
+    if source is not None:
+        inputs += model_inputs(source.path)
     output = check_outputs([(path, "the export")], inputs, probe=False)[0]
     exported = export_bytes(problem, nodes, path, morph_target=morph_target)
     write_outputs([(output, exported.data)])
@@ -202,6 +219,64 @@ def _rewrite(
         out_dir=out.parent.absolute(),
     )
     return Exported(done.data, list(done.notes))
+
+
+#: formats whose coordinates are float32 (binary STL; glTF's POSITION accessors)
+SINGLE_FORMATS = (".stl", ".glb", ".gltf")
+_PLY_SINGLE = re.compile(rb"property[ \t]+(?:float|float32)[ \t]+x\b")
+
+
+def _single(problem: Problem, path: Path) -> bool:
+    """Whether ``path`` is written with float32 coordinates: STL and glTF always; a PLY
+    rewritten in place keeps its own vertex type."""
+    suffix = path.suffix.lower()
+    if suffix in SINGLE_FORMATS:
+        return True
+    source = problem.model.source
+    if suffix == ".ply" and source is not None and source.path.suffix.lower() == ".ply":
+        try:
+            with open(source.path, "rb") as fh:
+                head = fh.read(4096).split(b"end_header", 1)[0]
+        except OSError:
+            return False
+        return bool(_PLY_SINGLE.search(head))
+    return False
+
+
+def _with_written_volume(
+    problem: Problem, nodes: np.ndarray, path: Path, exported: Exported
+) -> Exported:
+    """``exported`` with the volume its file holds: the deformed solid's vertices rounded
+    as the format stores them, measured about their mean; and a note where that rounding
+    (float32, or float64 far from the origin) moves the volume beyond the tolerance from
+    the solved one."""
+    from dataclasses import replace
+
+    from .volume import signed_volume
+
+    surface = problem.surface
+    single = _single(problem, path)
+    world = surface.deform(nodes)
+    written = world.astype(np.float32).astype(np.float64) if single else world
+    faces = surface.full.faces
+    volume = signed_volume(written, faces)
+    solved = surface.volume(nodes)
+    rest = abs(surface.rest_volume) or 1.0
+    change = (volume - solved) / rest
+    notes = list(exported.notes)
+    tolerance = problem.scenario.tol_volume
+    if abs(change) > tolerance:
+        how, fix = (
+            ("to float32, as the format stores them", "export as .ply or .obj to keep every digit")
+            if single
+            else ("at the model's distance from the origin", "move the model nearer the origin")
+        )
+        notes.append(
+            f"warning: {path.name} holds volume {volume:.9g}, not the solved {solved:.9g} "
+            f"({change:+.2e} of the model's volume, beyond the tolerance {tolerance:g}): its "
+            f"coordinates are rounded {how}; {fix}"
+        )
+    return replace(exported, notes=notes, volume=float(volume), single=single)
 
 
 def _kind(suffix: str) -> str:

@@ -130,7 +130,7 @@ def _frame(f) -> dict[str, Any]:
     }
 
 
-def _folds(folds: Any) -> dict[str, float] | None:
+def _folds(folds: Any) -> dict[str, Any] | None:
     """The folded fractions (0 when nothing is turned inside out)."""
     if folds is None:
         return None
@@ -140,6 +140,12 @@ def _folds(folds: Any) -> dict[str, float] | None:
         "vertex_fraction": folds.vertex_fraction,
         "interior_fraction": folds.interior_fraction,
         "min_det_j": low,
+        # det J > 0 proven over the whole solid (true), a pocket found or not proven
+        # (false), or not certified (null: folded samples, or a lattice of local bases)
+        "proven_fold_free": folds.proven,
+        "pocket": None
+        if folds.witness is None
+        else {"at": list(folds.witness), "det_j": folds.witness_det},
     }
 
 

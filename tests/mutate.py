@@ -508,3 +508,315 @@ def mutate_scenario(rng: random.Random) -> tuple[str, dict[str, bytes], str]:
         text = text[:at]
         done.append(f"truncate the JSON to {at} characters")
     return text, files, "; ".join(done)
+
+
+# -- issue 28's families: files a model reads, URIs, keys, far models, float32, signals -----
+@dataclass
+class HardCase:
+    """A case of one of issue 28's families: the files to write, the command line's
+    arguments (after ``solve``), what it checks, and a signal to send (or None)."""
+
+    family: str
+    description: str
+    files: dict[str, bytes]
+    args: list[str]
+    outputs: list[str]
+    #: "refused": exit 1 naming ``words``; "solved": exit 0/3, checked against ``truth``
+    expect: str
+    words: str = ""
+    truth: dict[str, Any] = field(default_factory=dict)
+    links: list[tuple[str, str, str]] = field(default_factory=list)  # (kind, name, target)
+    signal: tuple[int, float] | None = None  # (signal number, seconds after start)
+
+
+def _scenario_text(model: dict, rng: random.Random, **extra) -> bytes:
+    doc = {
+        "model": model,
+        "lattice": {"nodes": rng.choice([[3, 3, 3], [3, 2, 2]]), "padding": 0.05},
+        "moves": [{"node": [2, 1, 1], "by": [0.2, 0.0, 0.0]}],
+        **extra,
+    }
+    return json.dumps(doc, indent=1).encode()
+
+
+def _obj_with_files(rng: random.Random) -> dict[str, bytes]:
+    mesh = icosphere(rng.choice([1, 2]))
+    lib = rng.choice(["m.mtl", "my lib.mtl", "sub/m.mtl"])
+    tex = rng.choice(["wood.png", "tex/wood.png", "wood map.png"])
+    mtl_folder = lib.rpartition("/")[0]
+    tex_name = tex if not mtl_folder else f"../{tex}"
+    files = {
+        "m.obj": f"mtllib {lib}\n".encode() + mesh_bytes(mesh, ".obj"),
+        lib: f"newmtl a\nmap_Kd -s 1 1 1 {tex_name}\n".encode(),
+        tex: b"texture bytes",
+    }
+    return files
+
+
+def _gltf_with_files(rng: random.Random) -> dict[str, bytes]:
+    import trimesh
+
+    exported = trimesh.exchange.gltf.export_gltf(
+        trimesh.Scene(trimesh.creation.icosphere(rng.choice([1, 2]))), include_normals=True
+    )
+    doc = json.loads(exported["model.gltf"])
+    doc["images"] = [{"uri": "skin.png"}]
+    files = {k: v for k, v in exported.items() if k != "model.gltf"}
+    files["model.gltf"] = json.dumps(doc).encode()
+    files["skin.png"] = b"image bytes"
+    return files
+
+
+def _spell(rng: random.Random, name: str) -> tuple[str, list[tuple[str, str, str]]]:
+    """``name`` spelled another way, with the links that spelling needs."""
+    how = rng.choice(["plain", "dot", "up", "symlink", "hardlink", "absolute"])
+    if how == "dot":
+        return f"./{name}", []
+    if how == "up":
+        return f"sub2/../{name}", [("folder", "sub2", "")]
+    if how == "symlink":
+        return "alias.out", [("symlink", "alias.out", name)]
+    if how == "hardlink":
+        return "hard.out", [("hardlink", "hard.out", name)]
+    if how == "absolute":
+        return f"@ABS@/{name}", []
+    return name, []
+
+
+def companion_case(rng: random.Random) -> HardCase:
+    """An output naming a file the model reads (a material library, a texture, a glTF
+    buffer or image, the model, the scenario), by some spelling: refused, nothing touched."""
+    files = _obj_with_files(rng) if rng.random() < 0.5 else _gltf_with_files(rng)
+    model = "m.obj" if "m.obj" in files else "model.gltf"
+    files["s.json"] = _scenario_text({"path": model}, rng)
+    victim = rng.choice(sorted(files))
+    spelled, links = _spell(rng, victim)
+    role = rng.choice(["--out", "--report"])
+    args = ["s.json", role, spelled]
+    if role == "--out":
+        args += ["--report", "r.json"]
+    what = f"{role} onto {victim} as {spelled!r}"
+    words = "would overwrite" if spelled != "o.ply" else ""
+    return HardCase("companion", what, files, args, [], "refused", words, links=links)
+
+
+URIS = [
+    "../outside.bin",
+    "../../../../../../etc/passwd",
+    "/etc/passwd",
+    "file:///etc/passwd",
+    "sub/../../outside.bin",
+    "%2e%2e/outside.bin",
+    "http://example.com/a.bin",
+    "C:\\Windows\\win.ini",
+    "link.bin",
+]
+
+
+def uri_case(rng: random.Random) -> HardCase:
+    """A glTF whose buffer or image URI leads out of its folder: refused, nothing read."""
+    files = _gltf_with_files(rng)
+    doc = json.loads(files["model.gltf"])
+    kind = rng.choice(["buffers", "images"])
+    uri = rng.choice(URIS)
+    doc[kind][0]["uri"] = uri
+    files["model.gltf"] = json.dumps(doc).encode()
+    files["s.json"] = _scenario_text({"path": "model.gltf"}, rng)
+    links = [("symlink", "link.bin", "/etc/hostname")] if uri == "link.bin" else []
+    args = ["s.json", "--out", "o.glb", "--report", "r.json"]
+    return HardCase(
+        "uri", f"{kind} uri {uri!r}", files, args, [], "refused", "is refused", links=links
+    )
+
+
+def duplicate_key_case(rng: random.Random) -> HardCase:
+    """A scenario with a key given twice in one object: refused naming the key."""
+    key = rng.choice(["model", "lattice", "moves", "nodes", "padding", "target_volume_ratio"])
+    if key in ("nodes", "padding"):
+        text = (
+            '{"model": {"builtin": "sphere", "n_levels": 2}, "lattice": {"nodes": [3, 3, 3], '
+            f'"padding": 0.05, "{key}": {json.dumps([2, 2, 2] if key == "nodes" else 0.1)}}}}}'
+        )
+    else:
+        base = {
+            "model": {"builtin": "sphere", "n_levels": 2},
+            "lattice": {"nodes": [3, 3, 3]},
+            "moves": [],
+            "target_volume_ratio": 1.0,
+        }
+        body = json.dumps(base)[1:-1]
+        text = "{" + body + f', "{key}": {json.dumps(base[key])}' + "}"
+    args = ["s.json", "--out", "o.ply", "--report", "r.json"]
+    return HardCase(
+        "dupkey",
+        f"{key} twice",
+        {"s.json": text.encode()},
+        args,
+        [],
+        "refused",
+        f"'{key}' is given twice",
+    )
+
+
+def pinned_moved_case(rng: random.Random) -> HardCase:
+    node = [rng.randint(0, 2), rng.randint(0, 2), rng.randint(0, 2)]
+    pin: Any = node if rng.random() < 0.5 else {"node": node, "axes": rng.choice(["x", "yz"])}
+    doc = {
+        "version": 2,
+        "model": {"builtin": "sphere", "n_levels": 2},
+        "lattice": {"nodes": [3, 3, 3]},
+        "moves": [{"node": node, "by": [0.1, 0, 0]}],
+        "pins": [pin],
+    }
+    args = ["s.json", "--out", "o.ply", "--report", "r.json"]
+    return HardCase(
+        "pinmove",
+        f"node {node} pinned ({pin}) and moved",
+        {"s.json": json.dumps(doc).encode()},
+        args,
+        [],
+        "refused",
+        "is also moved",
+    )
+
+
+def far_case(rng: random.Random) -> HardCase:
+    """A box of a power-of-two size at a large offset (its corners exact): refused as too
+    far for its size, or solved with the original volume equal to the closed form and
+    the final within the tolerance."""
+    size = 2.0 ** rng.randint(-2, 24)
+    offset = rng.choice([0.0, 1e6, 1e10, 1e12, 1e13, 1e14, 5e14, 9e14]) * rng.choice([1, -1])
+    offset = float(np.round(offset / 2**20) * 2**20) if abs(offset) > 2**20 else offset
+    mesh = box((size, size / 2, size / 4))
+    v = mesh.vertices + offset
+    fmt = rng.choice([".ply", ".obj", ".off"])
+    files = {f"m{fmt}": mesh_bytes(TriMesh(v, mesh.faces), fmt)}
+    doc = {
+        "model": {"path": f"m{fmt}"},
+        "lattice": {"nodes": [3, 3, 3]},
+        "moves": [{"node": [2, 2, 2], "by": [size / 8, 0, 0]}],
+    }
+    files["s.json"] = json.dumps(doc).encode()
+    args = ["s.json", "--out", "o.ply", "--report", "r.json", "--quiet"]
+    truth = {"volume": size**3 / 8, "area": 2 * (size**2 / 2 + size**2 / 4 + size**2 / 8)}
+    return HardCase(
+        "far",
+        f"box {size:g} at {offset:g} as {fmt}",
+        files,
+        args,
+        ["o.ply", "r.json"],
+        "solved",
+        "too far from the origin",
+        truth,
+    )
+
+
+def fold_case(rng: random.Random) -> HardCase:
+    """The built-in sphere squashed or twisted hard: whatever the run says, a result
+    reported converged must have det J > 0 at dense points inside (checked from the
+    report's nodes)."""
+    nodes = rng.choice([[3, 3, 3], [4, 4, 4], [4, 3, 3]])
+    l, m, n = nodes
+    moves = []
+    for _ in range(rng.randint(1, 3)):
+        node = [rng.randrange(l), rng.randrange(m), rng.randrange(n)]
+        if any(mv["node"] == node for mv in moves):
+            continue
+        moves.append({"node": node, "by": [round(rng.uniform(-2.5, 2.5), 3) for _ in range(3)]})
+    doc = {
+        "model": {"builtin": "sphere", "n_levels": 3},
+        "lattice": {"nodes": nodes},
+        "moves": moves,
+        "target_volume_ratio": rng.choice([1.0, 0.3, 0.1, 0.05, 2.0]),
+    }
+    args = ["s.json", "--out", "o.ply", "--report", "r.json", "--quiet"]
+    return HardCase(
+        "fold",
+        f"sphere {nodes} {moves} x{doc['target_volume_ratio']}",
+        {"s.json": json.dumps(doc).encode()},
+        args,
+        ["o.ply", "r.json"],
+        "solved",
+        truth={"scenario": doc},
+    )
+
+
+def float32_case(rng: random.Random) -> HardCase:
+    """A thin box written to float32 formats: the report's written volume is the file's."""
+    thick = 10.0 ** rng.uniform(-5, 0)
+    mesh = box((1.0, 1.0, thick))
+    v = mesh.vertices + rng.choice([0.0, 10.0, 1000.0, 1e5])
+    files = {"m.ply": mesh_bytes(TriMesh(v, mesh.faces), ".ply")}
+    doc = {
+        "model": {"path": "m.ply"},
+        "lattice": {"nodes": [3, 3, 2]},
+        "moves": [{"node": [2, 2, 1], "by": [0.1, 0, 0]}],
+    }
+    files["s.json"] = json.dumps(doc).encode()
+    out = rng.choice(["o.stl", "o.glb", "o.ply"])
+    args = ["s.json", "--out", out, "--report", "r.json", "--quiet"]
+    return HardCase(
+        "float32",
+        f"box 1x1x{thick:.2g} to {out}",
+        files,
+        args,
+        [out, "r.json"],
+        "solved",
+        truth={"out": out},
+    )
+
+
+def signal_case(rng: random.Random) -> HardCase:
+    """A solve (one output set, or a sequence of frames) signalled at a random moment from
+    start-up to the end: interrupted (128+n, one line, nothing written) or finished."""
+    import signal as _signal
+
+    files = {"m.obj": mesh_bytes(icosphere(rng.choice([3, 4])), ".obj")}
+    doc: dict[str, Any] = {
+        "version": 3,
+        "model": {"path": "m.obj"},
+        "lattice": {"nodes": [4, 4, 4], "padding": 0.05},
+        "moves": [{"node": [3, 3, 3], "by": [0.8, 0.8, 0.0]}],
+    }
+    sequence = rng.random() < 0.3
+    if sequence:
+        doc["poses"] = [
+            {"frame": 0, "moves": [], "pins": []},
+            {"frame": 6, "moves": [{"node": [3, 3, 3], "by": [0.6, 0.0, 0.0]}], "pins": []},
+        ]
+        args = ["s.json", "--sequence", "f_####.obj", "--report", "r.json"]
+        outputs = [f"f_{i:04d}.obj" for i in range(7)] + ["r.json"]
+    else:
+        args = ["s.json", "--out", "o.ply", "--report", "r.json"]
+        outputs = ["o.ply", "r.json"]
+    files["s.json"] = json.dumps(doc).encode()
+    sig = rng.choice([_signal.SIGINT, _signal.SIGTERM, _signal.SIGHUP])
+    delay = rng.uniform(0.0, 6.0)
+    return HardCase(
+        "signal",
+        f"{sig.name} at {delay:.3f} s{' (sequence)' if sequence else ''}",
+        files,
+        args,
+        outputs,
+        "signal",
+        signal=(int(sig), delay),
+    )
+
+
+HARD_FAMILIES: dict[str, Callable[[random.Random], HardCase]] = {
+    "companion": companion_case,
+    "uri": uri_case,
+    "dupkey": duplicate_key_case,
+    "pinmove": pinned_moved_case,
+    "far": far_case,
+    "fold": fold_case,
+    "float32": float32_case,
+    "signal": signal_case,
+}
+
+
+def hard_case(seed: int, index: int) -> HardCase:
+    """Case ``index`` of ``seed``: the families in turn, each drawn from its own seed."""
+    names = list(HARD_FAMILIES)
+    rng = random.Random(seed * 1_000_003 + index)
+    return HARD_FAMILIES[names[index % len(names)]](rng)

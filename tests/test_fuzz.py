@@ -102,3 +102,28 @@ def test_fuzz_the_command_line(tmp_path):
         f"(rerun one with ISOCHOR_FUZZ_SEED={SEED} ISOCHOR_FUZZ_ONLY=<case>):\n"
         + "\n".join(failures)
     )
+
+
+#: issue 28's families (tests/mutate.py HARD_FAMILIES), a seeded subset of the campaign
+#: that tests/campaign.py runs by hand (1,500 cases); ``ISOCHOR_FUZZ_HARD_CASES`` to widen
+HARD_SEED = int(os.environ.get("ISOCHOR_FUZZ_HARD_SEED", "28"))
+HARD_CASES = int(os.environ.get("ISOCHOR_FUZZ_HARD_CASES", "8"))
+
+
+def test_fuzz_the_hardening_families(tmp_path):
+    """Outputs onto the files a model reads, glTF URIs out of the folder, duplicate keys,
+    pinned+moved nodes, far models, folds, float32 outputs, signals at random moments:
+    nothing destroyed, no silent wrong result, no traceback, no lost signal."""
+    from tests.campaign import check as check_case
+    from tests.mutate import hard_case
+
+    cases = [(hard_case(HARD_SEED, i), i) for i in range(HARD_CASES)]
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        results = list(pool.map(lambda c: check_case(c[0], c[1], tmp_path), cases))
+    failures = [
+        f"seed={HARD_SEED} case={index} [{case.family}: {case.description}] {kind}: {texts[0]}"
+        for case, index, _run, problems in results
+        for kind, texts in problems.items()
+    ]
+    assert {case.family for case, *_ in results} >= {"companion", "uri", "signal", "fold"}
+    assert not failures, "\n".join(failures)

@@ -1,24 +1,21 @@
 """Signals for the command line: Ctrl-C, ``kill`` (SIGTERM) and a closed terminal (SIGHUP)
 stop a run the same way, with one line, exit status 128 + the signal, and nothing written.
 
-:func:`install` runs at the very top of :mod:`isochor.app.cli.main`, before its other imports.
-Until :func:`arm` is called (the first thing ``main`` does inside its error handling) a
-signal is only remembered; ``arm`` then raises it where it is caught. After that the first
-signal raises :class:`Interrupted` (a ``KeyboardInterrupt``, so everything that stops a
-solve on Ctrl-C stops it on SIGTERM too); later ones are only noted, so the way out is
-never interrupted. :func:`commit` ends the raising for good when the outputs start to be
-renamed into place: from then on the run completes, and its exit status tells the truth
-about the files.
+**The handler only records.** :func:`install` runs at the very top of
+:mod:`isochor.app.cli.main`, before its other imports, and from then on a signal is
+*recorded* (:attr:`State.pending`), never raised by the handler itself: an exception raised
+from a signal handler lands wherever Python happens to be (an importlib callback, a
+``__del__``, a library's ``try: ... except BaseException``, numba loading its kernels),
+where it can be dropped, printed as "Exception ignored", or leave a library half-initialised.
+The run instead asks at its safe points (:func:`check`): when it starts (:func:`arm`),
+between its phases, at every step of the solve, and last before anything is written or
+renamed (:func:`commit`). So a signal is never lost: it ends the run at the next safe point
+with 128 + the signal, one line, and nothing written.
 
-**A signal is never lost.** The handler's exception can be: raised while Python runs a
-callback whose exceptions it ignores (a ``__del__``, a weakref callback, an import hook)
-or inside code that catches everything (a library's optional import), it is dropped, and
-the handler has disarmed itself. So the handler *records* every signal first
-(:attr:`State.raised`, :attr:`State.pending`), and :func:`commit`, the last step before
-anything is written or renamed, raises a recorded one again: the run then ends with
-128 + the signal, one line and nothing written, however the first exception was lost. An
-exception Python ignores is not printed either (:func:`install` sets
-``sys.unraisablehook``), so standard error keeps its one line.
+:func:`commit` ends the checking when the outputs start to be renamed into place: from then
+on the run completes (all or none). A signal that arrives during the renames is answered
+when they are done (:func:`finish`): the line then says every output was written. After
+that the run's status is decided and later signals are ignored.
 
 A signal the parent process ignores (``nohup``, a background job) stays ignored.
 """
@@ -52,21 +49,23 @@ class Interrupted(KeyboardInterrupt):
 
 
 class State:
-    """What the handler does: ``armed``, raise; otherwise only note the signal.
+    """What the run has received and where it stands.
 
     A plain class, not a dataclass: this module runs before the handlers are installed,
-    so it imports nothing heavier than ``signal`` and ``contextlib`` (``dataclasses``
-    brings ``inspect`` and widens the window in which Ctrl-C gives a traceback)."""
+    so it imports nothing heavier than ``signal`` and ``contextlib``."""
 
+    #: :func:`check` raises a recorded signal (from :func:`arm` to :func:`commit`)
     armed = False
+    #: the first signal received and not yet answered
     pending: int | None = None
-    #: the signal the handler raised, if it did: the exception it raised may come out as
-    #: another one (a C extension being imported turns it into "ImportError: initialization
-    #: failed"), and the run must still end as interrupted
+    #: the signal :func:`check` raised: the run ends as interrupted by it, even if its
+    #: exception comes out as another one
     raised: int | None = None
     previous: dict[int, object] = {}
     #: :func:`commit` has run: from then on the run completes
     committed = False
+    #: :func:`finish` has run: the status is decided, signals are ignored
+    done = False
     #: ``sys.unraisablehook`` before :func:`install`
     previous_hook = None
 
@@ -75,11 +74,9 @@ state = State()
 
 
 def _handler(signum: int, frame) -> None:
-    if state.armed:
-        state.armed = False  # once: the way out is never interrupted again
-        state.raised = signum
-        raise Interrupted(signum)
-    if state.pending is None:
+    """Record the signal; never raise (see the module's text). The handler stays
+    installed: a second signal is recorded too (the first one counts)."""
+    if state.pending is None and not state.done:
         state.pending = signum
 
 
@@ -108,33 +105,58 @@ def install() -> None:
 
 
 def arm() -> None:
-    """From now on a signal raises :class:`Interrupted`; one that came before is raised now."""
-    state.raised, state.committed = None, False
+    """A run starts: from now on :func:`check` raises a recorded signal; one received
+    before (while the program was imported) is raised now."""
+    state.raised, state.committed, state.done = None, False, False
     state.armed = True
-    signum, state.pending = state.pending, None
-    if signum is not None:
+    check()
+
+
+def check() -> None:
+    """A safe point: raise :class:`Interrupted` if a signal was received (and the run is
+    armed and not committed)."""
+    signum = state.pending
+    if signum is not None and state.armed and not state.committed:
         state.armed = False
-        state.raised = signum
+        state.raised, state.pending = signum, None
         raise Interrupted(signum)
 
 
 def hold() -> None:
-    """From now on signals are only noted: the run goes on to its end."""
+    """From now on signals are only recorded: the run goes on to its end."""
     state.armed = False
 
 
 def commit() -> None:
     """The last step before anything is written or renamed: a signal received since
-    :func:`arm` is raised now (again, if its first exception was lost); from then on
-    signals are only noted and the run goes on to its end. Only the first call checks."""
+    :func:`arm` is raised now; from then on signals are only recorded and the run goes on
+    to its end (see :func:`finish`). Only the first call checks."""
     if state.committed:
         return
-    state.armed = False  # a plain store first: a signal from here on is only noted
-    signum = state.raised if state.raised is not None else state.pending
-    if signum is not None:
-        state.raised, state.pending = signum, None
-        raise Interrupted(signum)
-    state.committed = True
+    check()
+    state.armed, state.committed = False, True
+
+
+def finish() -> int | None:
+    """The outputs are in place: the signal received since :func:`commit` (during the
+    renames), if any, which the caller answers with its line; from now on signals are
+    ignored."""
+    state.done, state.armed = True, False
+    signum, state.pending = state.pending, None
+    return signum
+
+
+def answer_late(signum: int, paths) -> int:
+    """Print the one line for a signal received while the outputs were renamed into place
+    (they were all written: the renames complete, all or none); its exit status."""
+    late = Interrupted(signum)
+    names = ", ".join(str(p) for p in paths)
+    print(
+        f"isochor: interrupted ({late.name}) while the outputs were put in place; all of "
+        f"them were written: {names}",
+        file=sys.stderr,
+    )
+    return late.status
 
 
 def ignore() -> None:
@@ -154,5 +176,5 @@ def release() -> None:
     state.previous.clear()
     if sys.unraisablehook is _unraisable:
         sys.unraisablehook, state.previous_hook = state.previous_hook, None
-    state.armed = False
+    state.armed = state.committed = state.done = False
     state.pending = state.raised = None

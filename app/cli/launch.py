@@ -180,10 +180,7 @@ def leave_now(code: int) -> None:
 
 def _inputs(path: str | None, doc) -> list[tuple[str, str]]:
     inputs = [(path, "the file it shows")] if path else []
-    model = doc.state.problem.scenario.model
-    if "path" in model:
-        inputs.append((str(doc.state.problem.scenario.model_path()), "the model"))
-    return inputs
+    return inputs + doc.state.problem.scenario.inputs()
 
 
 def take_screenshot(app, window, out: str | Path, timeout: float = SCREENSHOT_TIMEOUT) -> int:

@@ -91,16 +91,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not debug:  # numpy's overflow warnings and the like: never on the user's screen
                 warnings.simplefilter("ignore")
             args = _parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+            interrupts.check()
             status = args.run(args)
-            interrupts.commit()  # a run that wrote nothing: a signal it lost is answered
+            interrupts.commit()  # a run that wrote nothing: a signal it received is answered
             return status
     except BaseException as exc:
-        # a plain store first (no call, so no signal handler can run before it): from here
-        # on a signal is only noted, and the way out says one thing
-        interrupts.state.armed = False
+        interrupts.hold()  # from here on a signal is only recorded: the way out says one thing
         return _status(exc, debug)
     finally:
-        interrupts.state.armed = False
+        interrupts.hold()
         discard_pending()
 
 
@@ -108,9 +107,24 @@ def entry() -> NoReturn:
     """The ``isochor`` console script and ``python -m isochor``: :func:`main`, then exit
     deaf to signals. The run is over and its status decided; a signal now must neither
     change the status nor kill the interpreter while it shuts down (Python gives the
-    signals back to their default, deadly, action then)."""
+    signals back to their default, deadly, action then).
+
+    While the compiled kernels are still loading in their background thread (numba and
+    LLVM initialising; a short run, or one interrupted early) the process ends at once
+    with its status, its output flushed: an interpreter shutting down under a thread
+    inside a C extension's initialisation can crash (a SIGTERM once ended with a
+    segmentation fault, exit -11)."""
+    import contextlib
+    import threading
+    from os import _exit as end_now  # os's documented exit without interpreter shutdown
+
     status = main()
     interrupts.ignore()
+    if threading.active_count() > 1:
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):
+                stream.flush()
+        end_now(status if isinstance(status, int) else EXIT_ERROR)
     sys.exit(status)
 
 
@@ -118,8 +132,13 @@ def _status(exc: BaseException, debug: bool) -> int:
     """The one line and the exit status for what ended the run."""
     if isinstance(exc, interrupts.Interrupted):
         return _fail(f"interrupted ({exc.name}); nothing was written", exc.status)
-    if interrupts.state.raised is not None:  # a signal's exception that came out as another
-        signal = interrupts.Interrupted(interrupts.state.raised)
+    # a signal's exception that came out as another, or a signal received before an error
+    # ended the run: the run was interrupted (a signal is never lost)
+    received = interrupts.state.raised or (
+        None if interrupts.state.done else interrupts.state.pending
+    )
+    if received is not None and not isinstance(exc, SystemExit):
+        signal = interrupts.Interrupted(received)
         return _fail(f"interrupted ({signal.name}); nothing was written", signal.status)
     if isinstance(exc, IsochorError):
         return _fail(exc)
@@ -270,15 +289,14 @@ def _solve(args: argparse.Namespace) -> int:
         from ...core.scenario.examples import example_scenario
 
         scenario, source = example_scenario(args.example), f"example {args.example}"
-        inputs = []
     else:
         scenario, source = Scenario.read(args.scenario), str(args.scenario)
-        inputs = [(args.scenario, "the scenario")]
     scenario = scenario.with_(goal=_goal(scenario.goal, args))
     if args.basis is not None:
         scenario = _basis(scenario, args.basis)
-    if "path" in scenario.model:
-        inputs.append((scenario.model_path(), "the model"))
+    # the scenario, the model and every file the model reads (mtllib, textures, buffers)
+    inputs = scenario.inputs()
+    interrupts.check()
     if args.sequence is not None:
         from .sequence import run_sequence
 
@@ -295,23 +313,35 @@ def _solve(args: argparse.Namespace) -> int:
         or scenario.model_path().suffix.lower() not in GLTF_FORMATS
     ):
         raise IsochorError("--morph-target needs a glTF model and --out ending in .glb or .gltf")
+    interrupts.check()
     t0 = time.perf_counter()
     line = ProgressLine(sys.stderr)  # on a terminal only, for a load or solve that takes long
     try:
         session = open_session(scenario, progress=line if line.on else None)
         line.clear()
+        interrupts.check()
         for w in session.warnings:
             print(f"isochor: warning: {w}", file=sys.stderr)
         console = PipeSafe(sys.stdout)
         result = run_solve(session, None if args.quiet else console, line)
     finally:
         line.close()
+    interrupts.check()
     total = time.perf_counter() - t0
     exported = None
     if args.out is not None:
         exported = session.export_bytes(args.out, morph_target=args.morph_target)
+    interrupts.check()
     report = session.report_for(source, total)
     report["export_notes"] = list(exported.notes) if exported is not None else []
+    if exported is not None and exported.volume is not None:
+        # the volume the written file holds (its coordinates rounded as stored)
+        report["written"] = {
+            "file": str(args.out),
+            "volume": exported.volume,
+            "float32": exported.single,
+            "volume_error": (exported.volume - result.volume_target) / abs(result.volume_original),
+        }
     # everything is computed before anything is written: an error or a signal up to here
     # leaves no file; then the outputs are written as a set, all or none
     files = []
@@ -320,12 +350,14 @@ def _solve(args: argparse.Namespace) -> int:
             files.append((o, exported.data))
         else:
             files.append((o, (json.dumps(report, indent=2, allow_nan=False) + "\n").encode()))
-    # a signal received until the first output is renamed into place stops the run, even
-    # one whose exception was lost (interrupts.commit); from then on the run completes (the
-    # files are in place, so exit 0 or 3 is the truth)
+    # a signal received until the first output is renamed into place stops the run
+    # (interrupts.commit); from then on the renames complete, and a signal received during
+    # them is answered when they are done, saying so
     write_outputs(files, on_commit=interrupts.commit)
+    if (late := interrupts.finish()) is not None:
+        return interrupts.answer_late(late, [o.path for o in outputs])
     for note in exported.notes if exported is not None else ():
-        print(f"isochor: note: {note}", file=sys.stderr)
+        print(f"isochor: {_note(note)}", file=sys.stderr)
     _summary(result, args, console, caps_words(session.problem.surface.full))
     if result.converged and not result.handles_met:  # the best fit, said as a warning
         print(f"isochor: warning: {result.message}", file=sys.stderr)
@@ -365,7 +397,9 @@ def run_solve(
     """Drive the session's solve (:meth:`isochor.core.api.Session.steps`) to its end,
     printing one row per level (the progress ``line`` wiped before each).
 
-    Ctrl-C closes the generator (the solve stops at once) and is raised again.
+    A signal (Ctrl-C, SIGTERM, SIGHUP) is answered at the next step
+    (:func:`isochor.app.cli.interrupts.check`): the generator is closed (the solve stops)
+    and the interrupt raised.
 
     Returns
     -------
@@ -385,6 +419,7 @@ def run_solve(
     last = [0.0]
 
     def row(p) -> None:
+        interrupts.check()  # a safe point at every step: a signal stops the solve here
         if p.level_done and out is not None:
             if line is not None:
                 line.clear()
@@ -409,6 +444,11 @@ def caps_words(mesh) -> str:
     if not caps.holes:
         return ""
     return f" (capped: {caps.holes} hole(s), {100 * caps.ratio:.2g}% of the surface's area)"
+
+
+def _note(note: str) -> str:
+    """An export's note as its line: ``warning: ...`` ones stay warnings."""
+    return note if note.startswith("warning: ") else f"note: {note}"
 
 
 def _summary(result: SolveResult, args: argparse.Namespace, out: PipeSafe, caps: str) -> None:

@@ -47,8 +47,10 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
         targets = [(Path(frame_path(pattern, f)), "--sequence") for f in timeline.frames]
     report = [(args.report, "--report")] if args.report is not None else []
     outputs = check_outputs(targets + report, inputs)
+    interrupts.check()
     t0 = time.perf_counter()
     session = open_session(scenario)  # loaded as for one solve; its problem holds the poses
+    interrupts.check()
     problem = session.problem
     for w in session.warnings:
         print(f"isochor: warning: {w}", file=sys.stderr)
@@ -57,6 +59,7 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
         print(f"{'frame':>6} {'key':>4} {'ms':>8} {'|dV|/V0':>9}", file=console, flush=True)
 
     def row(f) -> None:
+        interrupts.check()  # a safe point at every frame
         if not args.quiet:
             err = abs(f.result.rel_volume_error)
             mark = "key" if f.key else ""
@@ -80,9 +83,13 @@ def run_sequence(args, scenario, inputs: list, source: str) -> int:
     files = list(zip(outputs, data))
     if report:
         files.append((outputs[-1], (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode()))
+    interrupts.check()
     write_outputs(files, on_commit=interrupts.commit)  # a signal received so far stops it
+    if (late := interrupts.finish()) is not None:
+        return interrupts.answer_late(late, [o.path for o in outputs])
     for note in notes:
-        print(f"isochor: note: {note}", file=sys.stderr)
+        shown = note if note.startswith("warning: ") else f"note: {note}"
+        print(f"isochor: {shown}", file=sys.stderr)
     if not args.quiet:
         worst = max(abs(f.result.rel_volume_error) for f in seq.frames)
         print(

@@ -9,6 +9,8 @@
 - :mod:`.handles`     surface handles: points of the model sent to places, as linear
   constraints reduced to what the free nodes can reach (least squares)
 - :mod:`.symmetry`    Mirror: symmetric editing across a lattice mid-plane
+- :mod:`.certify`     a proof that det J > 0 over the whole solid (Bernstein coefficients,
+  de Casteljau subdivision), or a point between the samples where it is not
 - :mod:`.folds`       det J at the model's vertices and inside it: fold detection and guard
 
 Uses :mod:`isochor.core.io` and the geometry at the top of :mod:`isochor.core`.

@@ -141,6 +141,13 @@ class Level:
         out[self.order] = points
         return out
 
+    def local(self, nodes: np.ndarray) -> np.ndarray:
+        """The level's deformed vertices relative to ``center``: the basis applied to the
+        nodes relative to it (the same points, as the basis sums to 1). A model far from
+        the origin (1e14 away, 1 across) keeps its digits: applied to the nodes
+        themselves, every point would be rounded at the offset's scale first."""
+        return self.basis.apply(np.asarray(nodes, dtype=np.float64) - self.center)
+
     def volume(self, nodes: np.ndarray) -> float:
         # One-entry memo: the stopping test and the result ask the full mesh for the
         # volume of the same nodes, and on a big mesh that is the costliest call there is.
@@ -150,12 +157,12 @@ class Level:
         last = self._last
         if last[0] == key:
             return last[1]
-        v = self.volume_op(self.basis.apply(nodes), self.center)
+        v = self.volume_op(self.local(nodes))
         self._last = (key, v)
         return v
 
     def volume_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
-        v, dv_dp = self.volume_op.value_and_gradient(self.basis.apply(nodes), self.center)
+        v, dv_dp = self.volume_op.value_and_gradient(self.local(nodes))
         self._last = (np.asarray(nodes, dtype=np.float64).tobytes(), v)
         return v, self.basis.apply_transpose(dv_dp)
 
@@ -176,7 +183,7 @@ class Level:
 
     def body_volumes(self, nodes: np.ndarray, bodies: Bodies) -> np.ndarray:
         parts, owner = self.parts(bodies)
-        vols = [p.op(p.basis.apply(nodes), self.center) for p in parts]
+        vols = [p.op(p.basis.apply(nodes - self.center)) for p in parts]
         return np.bincount(owner, weights=vols, minlength=bodies.count)
 
     def rest_body_volumes(self, bodies: Bodies) -> np.ndarray:
@@ -199,7 +206,7 @@ class Level:
 
     def moment_and_gradient(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First moment about ``center`` (3,) and its gradient (3, nodes, 3)."""
-        m, dm = self.moment_op.value_and_gradient(self.basis.apply(nodes), self.center)
+        m, dm = self.moment_op.value_and_gradient(self.local(nodes))
         return m, np.stack([self.basis.apply_transpose(d) for d in dm])
 
 
@@ -260,7 +267,7 @@ class Constraints:
             vols = np.zeros(self.bodies.count)
             dvols = np.zeros((self.bodies.count, *nodes.shape))
             for part, b in zip(parts, owner):
-                v, dp = part.op.value_and_gradient(part.basis.apply(nodes), lvl.center)
+                v, dp = part.op.value_and_gradient(part.basis.apply(nodes - lvl.center))
                 vols[b] += v
                 dvols[b] += part.basis.apply_transpose(dp)
         else:

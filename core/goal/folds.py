@@ -5,7 +5,9 @@ model inside out: there the determinant of the FFD's Jacobian ``J = dX/dx`` is z
 negative. This module
 
 - measures how much of a model is folded (:class:`FoldCheck` -> :class:`Folds`), at the
-  model's vertices and at points of a regular grid inside the solid (:func:`interior_points`);
+  model's vertices and at points of a regular grid inside the solid (:func:`interior_points`),
+  and, where no sample is folded, proves det J > 0 over the whole solid or finds the pocket
+  between the samples (:mod:`.certify`);
 - guards against folds (:class:`FoldGuard`): a smooth penalty on ``det J`` below a margin at
   fixed sample points, with its exact gradient with respect to the node positions.
 
@@ -14,7 +16,7 @@ At the rest lattice the FFD is the identity, so ``det J = 1`` everywhere.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from math import comb
 
 import numpy as np
@@ -27,6 +29,7 @@ from ..inside import grid_winding
 from ..lattice import Lattice
 from ..mesh import TriMesh
 from ..springs import sparse_hessian
+from .certify import Occupancy, certify, supported
 
 #: points per block of the blocked determinant evaluation (temporaries stay in cache)
 BLOCK = 4096
@@ -186,6 +189,11 @@ class Folds:
     interior_fraction : folded share of the interior points, 0.0 when there are none
     min_det : smallest ``det J`` over the samples (``inf`` when there are none)
     vertices : (m,) bool, read-only: which model vertices are folded
+    proven : det J > 0 over the whole solid, proven (:mod:`.certify`); False: a fold was
+        found between the samples (``witness``) or the proof did not conclude; None: not
+        certified (folded samples, or a lattice the proof does not cover)
+    witness : (3,) a point inside the model, between the samples, where det J <= 0
+    witness_det : det J at ``witness``
     """
 
     fraction: float
@@ -193,6 +201,9 @@ class Folds:
     interior_fraction: float
     min_det: float
     vertices: np.ndarray
+    proven: bool | None = None
+    witness: tuple[float, float, float] | None = None
+    witness_det: float | None = None
 
     def __post_init__(self) -> None:
         flags = np.array(self.vertices, dtype=bool).reshape(-1)
@@ -201,8 +212,13 @@ class Folds:
 
     @property
     def folded(self) -> bool:
-        """True when any sample is folded."""
-        return self.fraction > 0
+        """True when any sample is folded, or the certification found a fold between them."""
+        return self.fraction > 0 or self.witness is not None
+
+    @property
+    def unproven(self) -> bool:
+        """No fold found, but the absence of folds is not proven either."""
+        return not self.folded and self.proven is False
 
 
 class FoldCheck:
@@ -215,9 +231,21 @@ class FoldCheck:
     interior : (k, 3) points inside the solid (:func:`interior_points`), may be empty
     """
 
-    def __init__(self, lattice: Lattice, vertices: np.ndarray, interior: np.ndarray) -> None:
+    def __init__(
+        self,
+        lattice: Lattice,
+        vertices: np.ndarray,
+        interior: np.ndarray,
+        faces: np.ndarray | None = None,
+    ) -> None:
         self.lattice = lattice
         vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+        #: where the solid is, for the proof (:mod:`.certify`); needs the faces
+        self._occupancy = (
+            Occupancy(lattice, vertices, faces)
+            if faces is not None and supported(lattice)
+            else None
+        )
         interior = np.asarray(interior, dtype=np.float64).reshape(-1, 3)
         self.n_vertices, self.n_interior = len(vertices), len(interior)
         samples = np.concatenate([vertices, interior])
@@ -241,12 +269,24 @@ class FoldCheck:
         n_folded_inside = int(np.count_nonzero(inside <= 0))
         total = self.n_vertices + self.n_interior
         every = np.concatenate([at_vertices, inside])
-        return Folds(
+        folds = Folds(
             fraction=(n_folded_vertices + n_folded_inside) / total if total else 0.0,
             vertex_fraction=n_folded_vertices / self.n_vertices if self.n_vertices else 0.0,
             interior_fraction=n_folded_inside / self.n_interior if self.n_interior else 0.0,
             min_det=float(every.min()) if total else float("inf"),
             vertices=folded_vertices,
+        )
+        if folds.folded or self._occupancy is None:
+            return folds
+        # no sample folded: prove it between them, or find the pocket they missed
+        proof = certify(self.lattice, nodes, self._occupancy)
+        witness = None if proof.witness is None else tuple(float(c) for c in proof.witness)
+        return replace(
+            folds,
+            proven=proof.proven,
+            witness=witness,
+            witness_det=None if witness is None else proof.witness_det,
+            min_det=min(folds.min_det, proof.witness_det) if witness else folds.min_det,
         )
 
 

@@ -13,6 +13,8 @@
   morph target per frame, weights animated); separate images re-pointed when written elsewhere
 - :mod:`.gltfanim`  a sequence's GLB: another format's model file as glTF (UVs, materials),
   or a built-in shape's bare mesh animated
+- :mod:`.companions` the files a model reads besides itself (mtllib, textures, glTF
+  buffers and images), which no output may name; glTF URIs confined to the model's folder
 - :mod:`.atomic`    outputs checked before any work (never an input, a device, a folder), then
   written all or none through temporary files and renames
 

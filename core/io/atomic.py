@@ -216,9 +216,11 @@ def atomic_write_bytes(
     write_outputs([(check_outputs([(path, "the file")], inputs, probe=False)[0], data)])
 
 
-def atomic_write_text(path: str | Path, text: str) -> None:
+def atomic_write_text(
+    path: str | Path, text: str, inputs: Iterable[tuple[str | Path, str]] = ()
+) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically; see :func:`atomic_write_bytes`."""
-    atomic_write_bytes(path, text.encode("utf-8"))
+    atomic_write_bytes(path, text.encode("utf-8"), inputs)
 
 
 def discard(paths: Iterable[str]) -> None:

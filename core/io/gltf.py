@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import IsochorError
 from ..validate import MAX_COORDINATE, input_file, show
+from .companions import confined
 
 Deform = Callable[[np.ndarray], np.ndarray]  # (k, 3) world points -> (k, 3) deformed points
 Jacobian = Callable[[np.ndarray], np.ndarray]  # (k, 3) -> (k, 3, 3): d deformed_a / d x_b
@@ -201,7 +202,25 @@ class _Gltf:
         if used & _COMPRESSION:
             self.fail("compressed meshes are not supported; export without Draco or meshopt")
         buffers = self.doc.get("buffers", [])
+        self._confine(base_dir)  # every URI checked before any file is read
         self.buffers = [self._buffer(i, b, binary, base_dir) for i, b in enumerate(buffers)]
+
+    def _confine(self, base_dir: Path | None) -> None:
+        """Refuse, before anything is read, a buffer or image URI that is not a data: URI
+        or a relative path under the model's folder (``../../etc/passwd``, ``file:``,
+        ``/abs``): a crafted model must not copy a local file into an output."""
+        for kind, what in (("buffers", "buffer"), ("images", "image")):
+            items = self.doc.get(kind, [])
+            for item in items if isinstance(items, list) else ():
+                uri = item.get("uri") if isinstance(item, dict) else None
+                if uri is None or (isinstance(uri, str) and uri.startswith("data:")):
+                    continue
+                if not isinstance(uri, str):
+                    self.fail(f"a {what} uri is not a string")
+                try:
+                    confined(base_dir, uri, what)
+                except IsochorError as exc:
+                    self.fail(str(exc))
 
     def fail(self, message: str):
         raise IsochorError(f"{self.name}: {message}")
@@ -241,7 +260,7 @@ class _Gltf:
         elif base_dir is None:
             self.fail(f"its buffer {uri!r} is a separate file and no folder was given to find it")
         else:
-            path = Path(base_dir) / unquote(uri)
+            path = confined(base_dir, uri, "buffer")
             try:
                 input_file(path, "buffer", MAX_BUFFER_BYTES)
                 data = path.read_bytes()

@@ -64,6 +64,7 @@ from ..errors import IsochorError
 from ..goal.handles import Handle
 from ..goal.spec import GOAL_FIELDS, Goal
 from ..io.atomic import atomic_write_text
+from ..io.companions import model_inputs
 from ..io.formats import is_model
 from ..lattice import MAX_NODES, MIN_NODES, basis_names
 from ..localbasis import BERNSTEIN, MAX_LOCAL, MIN_LOCAL
@@ -279,7 +280,12 @@ class Scenario:
         except (OSError, ValueError) as exc:  # ValueError: a NUL byte, a bad encoding
             raise IsochorError(f"{path}: cannot read the scenario ({exc})") from None
         try:
-            doc = json.loads(text, parse_int=parse_int, parse_constant=parse_constant)
+            doc = json.loads(
+                text,
+                parse_int=parse_int,
+                parse_constant=parse_constant,
+                object_pairs_hook=_unique_keys,
+            )
         except json.JSONDecodeError as exc:
             raise IsochorError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
         except RecursionError:
@@ -305,7 +311,18 @@ class Scenario:
                 doc["model"]["path"] = os.path.relpath(src, os.path.abspath(path.parent))
             except ValueError:  # another drive on Windows
                 doc["model"]["path"] = str(src)
-        atomic_write_text(path, json.dumps(doc, indent=2) + "\n")
+        # never over the model or a file it reads (its material library, a buffer...)
+        atomic_write_text(path, json.dumps(doc, indent=2) + "\n", self.inputs(scenario=False))
+
+    def inputs(self, *, scenario: bool = True) -> list[tuple[Path, str]]:
+        """``(path, role)`` of every file this scenario reads: the scenario file itself
+        (with ``scenario``, when it was read from one), the model and the files the model
+        reads (:func:`isochor.core.io.companions.model_inputs`). No output may name one
+        (:func:`isochor.core.io.atomic.check_outputs`)."""
+        found = [(self.source, "the scenario")] if scenario and self.source is not None else []
+        if "path" in self.model:
+            found += model_inputs(self.model_path())
+        return found
 
     def model_path(self) -> Path:
         """The model file as an absolute path (relative paths are taken from the
@@ -349,3 +366,15 @@ class Scenario:
     def with_(self, **changes) -> Scenario:
         """This scenario with some fields changed (the goal as a whole: ``goal=``)."""
         return replace(self, **changes)
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose keys are all different: a key given twice (the second silently
+    winning) is refused, naming it."""
+    doc: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in doc:
+            shown = key if len(key) <= 60 else key[:57] + "..."
+            raise IsochorError(f"the key {shown!r} is given twice in one object; give it once")
+        doc[key] = value
+    return doc

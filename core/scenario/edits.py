@@ -58,6 +58,13 @@ class Edit:
             else:
                 moves.append(Move(node, to=vec3(mv["to"], f"{at}.to")))
         pins, axis_pins = _pins(as_list(doc.get("pins", []), f"{where}pins"), shape, version, where)
+        moved = {m.node for m in moves}
+        for node in (*pins, *(p for p, _ in axis_pins)):
+            if node in moved:
+                raise IsochorError(
+                    f"{where}pins: node {list(node)} is also moved; a moved node already "
+                    "stays where it is moved to, so give it either the move or the pin"
+                )
         handles = []
         for n, hd in enumerate(as_list(doc.get("handles", []), f"{where}handles")):
             at = f"{where}handles[{n}]"

@@ -72,11 +72,23 @@ def outcome(
     problems = []
     if v_final * v0 <= 0:
         problems.append("the final volume has turned inside out (its sign changed)")
-    if folds.folded:
+    if folds.folded and folds.fraction > 0:
         problems.append(
             f"the result is folded: {100 * folds.fraction:.3g}% of the model is turned "
             "inside out (det J <= 0)"
         )
+    elif folds.folded:
+        where = ", ".join(f"{c:.6g}" for c in folds.witness)
+        problems.append(
+            f"the result is folded: a pocket inside the model between the fold check's "
+            f"samples is turned inside out (det J = {folds.witness_det:.3g} at {where})"
+        )
+    unproven = (
+        "no fold was found, but det J could not be proven positive everywhere inside the "
+        "model (it comes within rounding of 0)"
+        if folds.unproven
+        else ""
+    )
     if converged and np.max(np.abs(c)) > opts.tol_volume:
         problems.append(
             f"a constraint misses its tolerance on the full mesh ({worst(c):.2e} of it)"
@@ -89,7 +101,8 @@ def outcome(
     if system is not None:  # the user's handles: the first half under symmetry
         handles = system.results(x, len(system.handles) // (2 if mirror else 1))
     fitted = handles_sentence(handles)
-    message = "; ".join(([message] if message else []) + problems + ([fitted] if fitted else []))
+    notes = [n for n in (fitted, unproven) if n]
+    message = "; ".join(([message] if message else []) + problems + notes)
     return SolveResult(
         frozen_copy(x),
         tuple(stats),

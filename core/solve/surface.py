@@ -112,7 +112,7 @@ class EmbeddedSurface:
     @cached_property
     def fold_check(self) -> FoldCheck:
         """det J over the full mesh's vertices and points inside the model."""
-        return FoldCheck(self.lattice, self.full.vertices, self.interior)
+        return FoldCheck(self.lattice, self.full.vertices, self.interior, self.full.faces)
 
     def fold_guard(self, margin: float) -> FoldGuard:
         """The fold penalty at the probe level's vertices and interior points."""
