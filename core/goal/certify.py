@@ -285,13 +285,10 @@ def _block_sum(s: np.ndarray, a: np.ndarray, b: np.ndarray) -> int:
 # -- the certification ---------------------------------------------------------------------
 def supported(lattice: Lattice) -> bool:
     """Whether :func:`certify` applies: a Bernstein lattice (the paper's). A lattice with
-    local bases per axis (``lattice.bases``, when not all Bernstein) is left to the fold
-    check's samples."""
-    bases = getattr(lattice, "bases", None)
-    if bases is None:
-        return True
-    names = (bases,) if isinstance(bases, str) else tuple(bases)
-    return all(str(b) == "bernstein" for b in names)
+    Blender's local bases (``lattice.local``) is left to the fold check's samples (its
+    det J is piecewise polynomial: :func:`certify_pieces` takes such pieces once they are
+    converted to Bezier form)."""
+    return not lattice.local
 
 
 def certify(
