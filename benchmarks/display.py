@@ -79,6 +79,13 @@ class Row:
         return ("MET" if self.met else "**MISSED**") + (f": {why}" if why else "")
 
 
+def target_table(rows: list[Row], notes: list[str]) -> list[str]:
+    """The markdown rows of a section's targets (what, ms, target, verdict), then its notes."""
+    lines = ["| what | ms | target | |", "|---|---|---|---|"]
+    lines += [f"| {r.what} | {r.ms()} | {r.target} | {r.verdict()} |" for r in rows]
+    return lines + ["", *[f"- {n}" for n in notes]]
+
+
 def _drag_rows(what: str, problem, repeats: int) -> list[Row]:
     target = LIVE_TARGET.get(what, LIVE_DEFAULT)
     d = dc.drag(problem, repeats)
@@ -251,10 +258,5 @@ def section(rows: list[Row], notes: list[str], command: str, repeats: int) -> li
         "start each L-BFGS run from the springs' Hessian and the penalty's Gauss-Newton term",
         "(`core/solve/precondition.py`); 'without the preconditioner' is the same run as before.",
         "",
-        "| what | ms | target | |",
-        "|---|---|---|---|",
     ]
-    for r in rows:
-        lines.append(f"| {r.what} | {r.ms()} | {r.target} | {r.verdict()} |")
-    lines += ["", *[f"- {n}" for n in notes]]
-    return lines
+    return lines + target_table(rows, notes)

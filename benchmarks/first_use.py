@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import BLAS_ENV
-from benchmarks.display import Row
+from benchmarks.display import Row, target_table
 from benchmarks.drag_cases import big_armadillo
 from benchmarks.scale import ARMADILLO, ROOT
 from benchmarks.timing import Timing
@@ -399,10 +399,5 @@ def section(rows: list[Row], notes: list[str], command: str) -> list[str]:
         "the solve on two cores slows the solve down; from there on numba starts before the",
         "model file is read and the solve waits for it (the file takes longer to read).",
         "",
-        "| what | ms | target | |",
-        "|---|---|---|---|",
     ]
-    for r in rows:
-        lines.append(f"| {r.what} | {r.ms()} | {r.target} | {r.verdict()} |")
-    lines += ["", *[f"- {n}" for n in notes]]
-    return lines
+    return lines + target_table(rows, notes)

@@ -34,6 +34,7 @@ def make_report(
         "model_path": str(sc.model_path()) if "path" in sc.model else None,
         "lattice": list(problem.surface.lattice.shape),
         "lattice_basis": list(problem.surface.lattice.basis),
+        "lattice_outside": bool(problem.surface.lattice.outside),
         "triangles": problem.surface.full.own_faces,
         "bodies": count_bodies(problem.surface.full),
         "caps": _caps(problem),

@@ -535,3 +535,14 @@ def test_the_command_line_solves_on_another_basis_and_names_a_bad_one(tmp_path, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--basis bspline,nurbs,linear: Unknown lattice basis 'nurbs'" in err[0]
     assert not report.exists() and not out.exists()  # nothing written
+    # Blender's "Outside" option: with a local basis, and refused (one line) on Bernstein
+    assert main([*args, "--basis", "bspline", "--outside", "--out", str(out)]) == 0
+    doc = json.loads(report.read_text())
+    assert doc["lattice_outside"] is True and doc["converged"]
+    report.unlink()
+    out.unlink()
+    capsys.readouterr()
+    assert main([*args, "--outside", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--outside: needs a local basis" in err[0], err
+    assert not report.exists() and not out.exists()

@@ -237,6 +237,12 @@ def _parser() -> argparse.ArgumentParser:
         "Blender's bspline, catmull-rom, cardinal, linear; one name or three comma-separated "
         "(one per axis)",
     )
+    solve.add_argument(
+        "--outside",
+        action="store_true",
+        help="Blender's lattice option 'Outside' (a local basis only): the inner nodes follow "
+        "the outer ones, as Blender keeps them",
+    )
     goal = solve.add_argument_group("what the solve holds (each overrides the scenario's)")
     for f in GOAL_FIELDS:  # one option per field of the goal, as it declares it
         if f.kind is bool:
@@ -294,6 +300,8 @@ def _solve(args: argparse.Namespace) -> int:
     scenario = scenario.with_(goal=_goal(scenario.goal, args))
     if args.basis is not None:
         scenario = _basis(scenario, args.basis)
+    if args.outside:
+        scenario = _outside(scenario)
     # the scenario, the model and every file the model reads (mtllib, textures, buffers)
     inputs = scenario.inputs()
     interrupts.check()
@@ -378,6 +386,15 @@ def _basis(scenario, text: str):
     except IsochorError as exc:
         message = str(exc).removeprefix("lattice.basis: ")
         raise IsochorError(f"--basis {text}: {message}") from None
+
+
+def _outside(scenario):
+    """``scenario`` with Blender's "Outside" option on, checked as ``lattice.outside`` is."""
+    try:
+        return scenario.checked({"lattice_outside": True})
+    except IsochorError as exc:
+        message = str(exc).removeprefix("lattice.outside: ")
+        raise IsochorError(f"--outside: {message}") from None
 
 
 def _goal(goal: Goal, args: argparse.Namespace) -> Goal:

@@ -309,10 +309,18 @@ def apply_transpose(uvw: np.ndarray, rows: np.ndarray, shape, k=None) -> np.ndar
     if rows.shape != uvw.shape:
         return None
     g = np.ascontiguousarray(rows, dtype=np.float64)
-    ranges = _chunks(uvw.shape[1])
-    acc = np.zeros((len(ranges), l * m * n * 3))
-    _jitthreads.run(lambda i: k.transpose_range(uvw, g, l, m, n, *ranges[i], acc[i]), len(ranges))
-    return acc.sum(axis=0).reshape(l * m * n, 3) if len(ranges) > 1 else acc[0].reshape(-1, 3)
+    return _summed(
+        uvw.shape[1], l * m * n, lambda r, out: k.transpose_range(uvw, g, l, m, n, *r, out)
+    )
+
+
+def _summed(points: int, nodes: int, fill) -> np.ndarray:
+    """(nodes, 3) node values summed over the threads' chunks of ``points``: ``fill(range,
+    out)`` adds a chunk's share into its own ``out`` (nodes * 3,)."""
+    ranges = _chunks(points)
+    acc = np.zeros((len(ranges), nodes * 3))
+    _jitthreads.run(lambda i: fill(ranges[i], acc[i]), len(ranges))
+    return acc.sum(axis=0).reshape(nodes, 3) if len(ranges) > 1 else acc[0].reshape(-1, 3)
 
 
 @_guard
@@ -438,13 +446,11 @@ def local_transpose(uvw, codes, rows, shape, k=None) -> np.ndarray | None:
     if rows.shape != uvw.shape:
         return None
     g = np.ascontiguousarray(rows, dtype=np.float64)
-    ranges = _chunks(uvw.shape[1])
-    acc = np.zeros((len(ranges), l * m * n * 3))
-    _jitthreads.run(
-        lambda i: k.local_transpose_range(uvw, codes, g, l, m, n, *ranges[i], acc[i]),
-        len(ranges),
+    return _summed(
+        uvw.shape[1],
+        l * m * n,
+        lambda r, out: k.local_transpose_range(uvw, codes, g, l, m, n, *r, out),
     )
-    return acc.sum(axis=0).reshape(l * m * n, 3) if len(ranges) > 1 else acc[0].reshape(-1, 3)
 
 
 @_guard
