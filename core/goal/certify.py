@@ -337,13 +337,16 @@ def certify_pieces(
     boxes, lower, undecided = 0, np.inf, False
     while stack:
         lo, width, coeffs = stack.pop()
-        meets, within = (True, True) if occupancy is None else occupancy.block(lo, lo + width)
-        if not meets:
-            continue
         boxes += 1
         low = float(coeffs.min())
-        if low > bound:  # proven positive on this box
+        if low > bound:  # proven positive on this box, wherever the solid lies in it
             lower = min(lower, low)
+            continue
+        # not proven: only the part of the box the solid meets matters (the occupancy
+        # grid is built on this first need)
+        meets, within = (True, True) if occupancy is None else occupancy.block(lo, lo + width)
+        if not meets:
+            boxes -= 1
             continue
         # a fold may be here: det J at a few points of the box, checked inside the solid
         # (at once where the box is wholly inside; by winding numbers where it holds the
