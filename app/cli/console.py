@@ -5,12 +5,29 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import threading
 import time
-from typing import TextIO
+from typing import NoReturn, TextIO
 
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED = 0, 1, 2, 3
 EXIT_INTERNAL = 70  # EX_SOFTWARE: a bug, not the user's doing
+
+
+def leave_now(status: int) -> NoReturn:
+    """End the process at once with ``status``, without Python's finalisation: logging (if
+    used) shut down and the standard streams flushed (closed or detached ones skipped),
+    then ``os._exit``. For a process whose work is done and written while other threads
+    may still run (the kernels' loader, a lattice rebuild) or whose finalisation is slow
+    (the editor's VTK objects and arrays)."""
+    from os import _exit  # (os's documented exit without interpreter shutdown)
+
+    if (logging := sys.modules.get("logging")) is not None:
+        logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            stream.flush()
+    _exit(status)
 
 
 class PipeSafe:

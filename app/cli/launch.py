@@ -87,7 +87,7 @@ def run_editor(
     Returns the process exit code: 0, or 1 with one line on standard error (no display,
     the GUI libraries are missing, or in screenshot mode a file or the solve failed). The
     interactive editor does not return: when its window has closed the process ends at
-    once with the application's exit code (:func:`leave_now`).
+    once with the application's exit code (:func:`isochor.app.cli.console.leave_now`).
     """
     problem = display_problem()
     if problem is not None:
@@ -152,30 +152,10 @@ def run_editor(
         window.error("Cannot open the file", opening_error)
     code = app.exec()
     window.shutdown()
+    from .console import leave_now
+
     leave_now(int(code))
     return int(code)  # (not reached)
-
-
-def leave_now(code: int) -> None:
-    """End the editor's process at once with ``code``, once its window has shut down.
-
-    Python's own ending (every module's objects freed one by one: VTK's, the models' arrays,
-    the kernels') took 0.9-1.5 s after the window closed on the 346k armadillo on an idle
-    machine and 4-6 s on a loaded one, with nothing left to save. Whatever had to be written
-    is written before the window closes; here the standard streams are flushed and logging
-    shut down, and the process leaves without finalising (``os._exit``), so quitting takes
-    what closing the window takes. Only the interactive editor ends this way (a screenshot
-    run, or a test calling :func:`run_editor` in its process, returns)."""
-    import contextlib
-    import logging
-    from os import _exit  # (the documented way to end without finalising)
-
-    logging.shutdown()
-    for stream in (sys.stdout, sys.stderr):
-        # (closed or detached: nothing to flush)
-        with contextlib.suppress(OSError, ValueError, AttributeError):
-            stream.flush()
-    _exit(code)
 
 
 def _inputs(path: str | None, doc) -> list[tuple[str, str]]:

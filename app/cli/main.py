@@ -59,6 +59,7 @@ from .console import (  # noqa: E402
     EXIT_USAGE,
     PipeSafe,
     ProgressLine,
+    leave_now,
 )
 
 # One BLAS thread unless the user says otherwise: the lattice products are small and the
@@ -114,17 +115,12 @@ def entry() -> NoReturn:
     with its status, its output flushed: an interpreter shutting down under a thread
     inside a C extension's initialisation can crash (a SIGTERM once ended with a
     segmentation fault, exit -11)."""
-    import contextlib
     import threading
-    from os import _exit as end_now  # os's documented exit without interpreter shutdown
 
     status = main()
     interrupts.ignore()
     if threading.active_count() > 1:
-        for stream in (sys.stdout, sys.stderr):
-            with contextlib.suppress(OSError, ValueError):
-                stream.flush()
-        end_now(status if isinstance(status, int) else EXIT_ERROR)
+        leave_now(status if isinstance(status, int) else EXIT_ERROR)
     sys.exit(status)
 
 

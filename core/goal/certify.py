@@ -337,17 +337,17 @@ def certify_pieces(
     boxes, lower, undecided = 0, np.inf, False
     while stack:
         lo, width, coeffs = stack.pop()
-        boxes += 1
         low = float(coeffs.min())
         if low > bound:  # proven positive on this box, wherever the solid lies in it
+            boxes += 1
             lower = min(lower, low)
             continue
         # not proven: only the part of the box the solid meets matters (the occupancy
         # grid is built on this first need)
         meets, within = (True, True) if occupancy is None else occupancy.block(lo, lo + width)
         if not meets:
-            boxes -= 1
             continue
+        boxes += 1
         # a fold may be here: det J at a few points of the box, checked inside the solid
         # (at once where the box is wholly inside; by winding numbers where it holds the
         # surface, on its last split)
