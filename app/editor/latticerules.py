@@ -21,9 +21,10 @@ from .edit import Edit, EditBase
 from .state import DocState, plural
 
 
-def edit_lattice(base: EditBase, shape, basis=None) -> Edit | None:
+def edit_lattice(base: EditBase, shape, basis=None, outside=None) -> Edit | None:
     """A new lattice of ``shape`` nodes around the same model, at rest; ``basis`` (one name
-    or three, :data:`isochor.core.localbasis.NAMES`) changes its basis too (None keeps it).
+    or three, :data:`isochor.core.localbasis.NAMES`) changes its basis too (None keeps it),
+    and ``outside`` Blender's Outside option (None keeps it; a local basis only).
 
     Moves, pins and the timeline's keys are dropped (they name nodes of the old lattice);
     the model pyramid is reused, and so is a problem built before for the same shape, with
@@ -37,13 +38,21 @@ def edit_lattice(base: EditBase, shape, basis=None) -> Edit | None:
     if len(shape) != 3 or not all(low <= s <= high for s in shape):
         which = "a local basis" if local else "the Bernstein basis"
         raise IsochorError(f"A lattice with {which} has {low} to {high} nodes per axis.")
-    if shape == tuple(st.lattice.shape) and basis == st.lattice.basis:
+    outside = st.lattice.outside if outside is None else bool(outside)
+    if outside and not local:
+        raise IsochorError("The Outside option needs a local basis (B-spline, ...), not Bernstein.")
+    outside = outside and local
+    if (
+        shape == tuple(st.lattice.shape)
+        and basis == st.lattice.basis
+        and outside == st.lattice.outside
+    ):
         return None
     old = st.problem
     scenario = old.scenario.with_(
         lattice_nodes=shape,
         lattice_basis=basis,
-        lattice_outside=st.lattice.outside and local,
+        lattice_outside=outside,
         moves=(),
         pins=(),
         axis_pins=(),
@@ -69,4 +78,5 @@ def edit_lattice(base: EditBase, shape, basis=None) -> Edit | None:
     keys = len(st.timeline.keys)
     dropped = f", {plural(keys, 'key')} dropped" if keys else ""
     named = "" if not local else f" ({'/'.join(dict.fromkeys(basis))})"
+    named += ", outside" if outside else ""
     return Edit(state, "Rebuild lattice {}x{}x{}".format(*shape) + named + dropped)

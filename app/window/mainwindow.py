@@ -266,7 +266,7 @@ class MainWindow(QMainWindow):
             reset_camera=reset_camera,
         )
         self.display_changed()
-        self.panel.show_shape(st.lattice.shape, st.lattice.basis)
+        self.panel.show_shape(st.lattice.shape, st.lattice.basis, st.lattice.outside)
 
     def _state_changed(self) -> None:
         st = self.state
@@ -359,7 +359,7 @@ class MainWindow(QMainWindow):
         """A new lattice of ``shape`` nodes (one undo step; a big model's is computed on a
         thread and committed when ready: :mod:`isochor.app.window.rebuild`)."""
         try:
-            self.lattice_rebuild.start(shape, self.panel.basis_name())
+            self.lattice_rebuild.start(shape, self.panel.basis_name(), self.panel.outside())
         except IsochorError as exc:
             self.error("Cannot rebuild the lattice", str(exc))
 

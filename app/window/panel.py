@@ -195,15 +195,23 @@ class Panel(QWidget):
         self.basis.currentIndexChanged.connect(self._basis_ranges)
         lgrid.addWidget(QLabel("Basis"), 1, 0)
         lgrid.addWidget(self.basis, 1, 1, 1, 2)
+        self.outside_box = QCheckBox("Outside")
+        self.outside_box.setToolTip(
+            "Blender's Outside option (local bases only): points outside the box are moved "
+            "as if the lattice went on beyond its last nodes, instead of following the "
+            "nearest face."
+        )
+        lgrid.addWidget(self.outside_box, 2, 1, 1, 2)
+        self._basis_ranges()
         self.rebuild = QPushButton("Rebuild lattice")
         self.rebuild.clicked.connect(
             lambda: self.latticeRequested.emit(tuple(s.value() for s in self.shape))
         )
-        lgrid.addWidget(self.rebuild, 2, 0, 1, 3)
-        note = QLabel("Nodes per axis and basis. Rebuilding resets moves and pins.")
+        lgrid.addWidget(self.rebuild, 3, 0, 1, 3)
+        note = QLabel("Nodes per axis, basis and Outside. Rebuilding resets moves and pins.")
         note.setStyleSheet("color: #8b95a5;")
         note.setWordWrap(True)
-        lgrid.addWidget(note, 3, 0, 1, 3)
+        lgrid.addWidget(note, 4, 0, 1, 3)
         lay.addWidget(lat)
 
         # display
@@ -299,8 +307,13 @@ class Panel(QWidget):
         self.target.setValue(percent)
         self.target.blockSignals(False)
 
-    def show_shape(self, shape, basis=None) -> None:
-        """The lattice's node counts, and its basis (one name for all axes) when given."""
+    def show_shape(self, shape, basis=None, outside=None) -> None:
+        """The lattice's node counts, and its basis (one name for all axes) and Outside
+        option when given."""
+        if outside is not None:
+            self.outside_box.blockSignals(True)
+            self.outside_box.setChecked(bool(outside))
+            self.outside_box.blockSignals(False)
         if basis is not None:
             self.basis.blockSignals(True)
             at = self.basis.findData(basis[0] if len(set(basis)) == 1 else BERNSTEIN)
@@ -316,9 +329,15 @@ class Panel(QWidget):
         """The basis chosen in the lattice box (a name of :data:`BASIS_LABELS`)."""
         return str(self.basis.currentData())
 
+    def outside(self) -> bool:
+        """Blender's Outside option as the lattice box shows it (False for Bernstein)."""
+        return self.outside_box.isEnabled() and self.outside_box.isChecked()
+
     def _basis_ranges(self) -> None:
-        """The node-count range of the chosen basis on the spin boxes."""
+        """The node-count range of the chosen basis on the spin boxes, and the Outside
+        option offered for a local basis only."""
         local = self.basis_name() != BERNSTEIN
+        self.outside_box.setEnabled(local)
         low, high = (MIN_LOCAL, MAX_LOCAL) if local else (MIN_NODES, MAX_NODES)
         for s in self.shape:
             s.setRange(low, high)

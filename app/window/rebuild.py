@@ -34,12 +34,12 @@ from .loading import Gate
 BACKGROUND_FACES = 100_000
 
 
-def prepare_rebuild(base, shape, basis=None):
-    """The edit that rebuilds the lattice with ``shape`` nodes (and ``basis``: None keeps
-    it) from ``base`` and the view's
+def prepare_rebuild(base, shape, basis=None, outside=None):
+    """The edit that rebuilds the lattice with ``shape`` nodes (and ``basis`` and
+    ``outside``: None keeps them) from ``base`` and the view's
     arrays for it: ``(edit, prep)``, or ``(None, None)`` when the lattice has that shape
     already. Qt-free: what the thread runs. Raises :class:`IsochorError` for a bad shape."""
-    edit = latticerules.edit_lattice(base, shape, basis)
+    edit = latticerules.edit_lattice(base, shape, basis, outside)
     if edit is None:
         return None, None
     surface = edit.state.surface
@@ -84,22 +84,22 @@ class LatticeRebuild(QObject):
         """A rebuild runs whose result will be committed."""
         return self._running is not None
 
-    def start(self, shape, basis=None) -> bool:
-        """Rebuild the lattice with ``shape`` nodes (and ``basis``): at once for a small
-        model (True when the lattice changed), on a thread for a big one (True: it
-        started)."""
+    def start(self, shape, basis=None, outside=None) -> bool:
+        """Rebuild the lattice with ``shape`` nodes (and ``basis`` and ``outside``): at
+        once for a small model (True when the lattice changed), on a thread for a big one
+        (True: it started)."""
         win = self.win
         self.cancel()
         base = win.doc.base()
         if win.state.surface.full.n_faces <= BACKGROUND_FACES:
-            edit, prep = prepare_rebuild(base, shape, basis)
+            edit, prep = prepare_rebuild(base, shape, basis, outside)
             return self._commit(edit, prep)
         self.generation += 1
         gen = self.generation
         self._running = (gen, win.doc.cell)
         thread = threading.Thread(
             target=self._run,
-            args=(gen, base, shape, basis),
+            args=(gen, base, shape, basis, outside),
             name=f"isochor-lattice-{gen}",
             daemon=True,
         )
@@ -113,9 +113,9 @@ class LatticeRebuild(QObject):
         self._running = None
 
     # -- the thread ----------------------------------------------------------------------------
-    def _run(self, gen: int, base, shape, basis) -> None:
+    def _run(self, gen: int, base, shape, basis, outside) -> None:
         try:
-            done = prepare_rebuild(base, shape, basis)
+            done = prepare_rebuild(base, shape, basis, outside)
         except IsochorError as exc:
             self._emit(self.failed, gen, str(exc))
         except Exception as exc:  # every failure becomes the message shown

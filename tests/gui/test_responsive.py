@@ -42,9 +42,9 @@ def held_rebuild(monkeypatch):
     release = threading.Event()
     prepare = rebuild.prepare_rebuild
 
-    def held(base, shape, basis=None):
+    def held(base, shape, basis=None, outside=None):
         assert release.wait(30)
-        return prepare(base, shape, basis)
+        return prepare(base, shape, basis, outside)
 
     monkeypatch.setattr(rebuild, "BACKGROUND_FACES", 0)
     monkeypatch.setattr(rebuild, "prepare_rebuild", held)
