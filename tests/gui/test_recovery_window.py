@@ -104,7 +104,7 @@ def test_work_survives_a_sigkill_and_is_recovered_at_the_next_start(qtbot, theme
                     break
         assert line.startswith("READY"), f"the child said {line!r} (exit {proc.poll()})"
         edited = np.array(json.loads(line.split(" ", 1)[1]))
-        left = recovery.own_file(proc.pid)
+        (left,) = recovery.files_of(proc.pid)
         assert left.is_file()
         proc.send_signal(signal.SIGKILL)
         proc.wait(30)
