@@ -421,7 +421,7 @@ class FoldGuard:
 
     def determinants(self, nodes: np.ndarray) -> np.ndarray:
         """(k,) ``det J`` at the sample points for node positions ``nodes`` (nodes, 3)."""
-        return self._evaluate(nodes)
+        return self._evaluate(nodes)[0]
 
     def _candidates(self, nodes: np.ndarray) -> np.ndarray | None:
         """The samples that may be within the margin at ``nodes``, proven from the last full
@@ -451,14 +451,17 @@ class FoldGuard:
         bound = e0 * (b + e1) * (c + e2) + a * (e1 * (c + e2) + b * e2)
         return np.flatnonzero(bound >= slack)
 
-    def _evaluate(self, nodes: np.ndarray) -> np.ndarray:
-        """det J at every sample; remembers, for :meth:`_candidates`, each sample's slack
-        and a bound on its columns' lengths. The compiled kernels evaluate the Bernstein
-        polynomials per sample (:func:`isochor.core.kernels.determinants`, with ``|J|_F``,
-        which bounds every column); the NumPy path multiplies the stored basis gradients
-        (``3 k nodes`` numbers read each time) and measures each column."""
+    def _evaluate(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """det J at every sample, and the columns of J where the NumPy path made them
+        ((3, k, 3), as :meth:`_columns`; None from the kernels); remembers, for
+        :meth:`_candidates`, each sample's slack and a bound on its columns' lengths. The
+        compiled kernels evaluate the Bernstein polynomials per sample
+        (:func:`isochor.core.kernels.determinants`, with ``|J|_F``, which bounds every
+        column); the NumPy path multiplies the stored basis gradients (``3 k nodes``
+        numbers read each time) and measures each column."""
         x = np.array(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
         fast = self._compiled(x, self._uvw_t, frobenius=True)
+        cols = None
         if fast is not None:
             dets, squares = fast
             squares = squares[None]
@@ -472,7 +475,7 @@ class FoldGuard:
             longest = lengths.max(axis=1)
             longest = tuple(float(v) for v in (longest if len(longest) == 3 else [longest[0]] * 3))
             self._ref = (x, slack, lengths, float(slack.min()), longest)
-        return dets
+        return dets, cols
 
     def _compiled(self, x: np.ndarray, uvw_t: np.ndarray, frobenius: bool = False):
         """det J (and ``|J|_F^2`` with ``frobenius``) at lattice coordinates ``uvw_t`` by
@@ -490,14 +493,15 @@ class FoldGuard:
         grid = x.reshape(*lat.shape, 3)
         return kernels.determinants(uvw_t, grid, self._to_world, frobenius=frobenius)
 
-    def _determinants_at(self, nodes: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        """det J at the samples ``rows`` only: the same numbers as :meth:`_evaluate` there."""
+    def _determinants_at(self, nodes: np.ndarray, rows: np.ndarray):
+        """det J at the samples ``rows`` only, the same numbers as :meth:`_evaluate` there,
+        and their columns (None from the kernels)."""
         x = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
         fast = self._compiled(x, np.ascontiguousarray(self._uvw_t[:, rows]))
         if fast is not None:
-            return fast
-        c0, c1, c2 = self._columns(x, rows)
-        return np.einsum("pa,pa->p", c0, np.cross(c1, c2))
+            return fast, None
+        c0, c1, c2 = cols = self._columns(x, rows)
+        return np.einsum("pa,pa->p", c0, np.cross(c1, c2)), cols
 
     def _near(self, nodes: np.ndarray):
         """``(short, active, cof)`` at the samples within the margin: how far each is below
@@ -513,15 +517,20 @@ class FoldGuard:
             return None
         if rows is None or rows.size > PARTIAL * self.n_points:
             rows = slice(None)
-            below = self.margin - self._evaluate(nodes)
+            dets, cols = self._evaluate(nodes)
         else:
-            below = self.margin - self._determinants_at(nodes, rows)
+            dets, cols = self._determinants_at(nodes, rows)
+        below = self.margin - dets
         within = np.flatnonzero(below > 0)
         if within.size == 0:  # nowhere near a fold after all
             return None
         short = below[within]
         active = within if isinstance(rows, slice) else rows[within]
-        a0, a1, a2 = self._columns(nodes, active if active.size < self.n_points else slice(None))
+        # the columns the determinants came from (the kernels make none: made here)
+        if cols is None:
+            a0, a1, a2 = self._columns(nodes, active)
+        else:
+            a0, a1, a2 = cols if within.size == len(dets) else cols[:, within]
         cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)])
         return short, active, cof
 
