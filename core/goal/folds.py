@@ -35,8 +35,9 @@ from .certify import Occupancy, certify, supported
 BLOCK = 4096
 #: |winding number| above this: inside
 INSIDE = 0.5
-#: (point, node) entries per block while building the guard's basis gradients
-GUARD_BLOCK = 1 << 20
+#: (point, node) entries per block while building the guard's basis gradients (their
+#: temporaries, a few of this size, stay small enough to be reused from block to block)
+GUARD_BLOCK = 1 << 16
 #: the fold guard evaluates only the samples its bound leaves (:meth:`FoldGuard._candidates`)
 #: while they are at most this share of all; more, and it evaluates every one, which renews
 #: the bound's reference
@@ -392,6 +393,8 @@ class FoldGuard:
             self._reach = self._sparse.reach() if k else np.zeros((3, nodes))
             return
         self._g = g = np.empty((3, k, nodes))
+        #: (3, nodes) the largest |dB_node / dx_b| over the samples (see :meth:`_candidates`)
+        self._reach = reach = np.zeros((3, nodes))
         step = max(1, GUARD_BLOCK // nodes)
         for s in range(0, k, step):
             (bu, bv, bw), (dbu, dbv, dbw) = _parameter_bases(lattice, uvw_t[:, s : s + step])
@@ -401,9 +404,9 @@ class FoldGuard:
                 for x, y, z in ((dbu, bv, bw), (bu, dbv, bw), (bu, bv, dbw))
             ]
             for b in range(3):
-                g[b, s : s + width] = (inv[b, 0] * d[0] + inv[b, 1] * d[1] + inv[b, 2] * d[2]).T
-        #: (3, nodes) the largest |dB_node / dx_b| over the samples (see :meth:`_candidates`)
-        self._reach = np.abs(g).max(axis=1) if k else np.zeros((3, nodes))
+                block = inv[b, 0] * d[0] + inv[b, 1] * d[1] + inv[b, 2] * d[2]
+                g[b, s : s + width] = block.T
+                np.maximum(reach[b], np.abs(block, out=block).max(axis=1), out=reach[b])
 
     @property
     def nbytes(self) -> int:
