@@ -213,13 +213,16 @@ def test_blocked_winding_numbers_are_one_inside_and_zero_outside():
     np.testing.assert_allclose(w, np.where(np.linalg.norm(points, axis=1) < 1, 1.0, 0.0), atol=1e-9)
 
 
-def test_guard_skips_only_what_it_can_prove_is_above_the_margin(evaluation_path):
+@pytest.mark.parametrize("basis", ["bernstein", "bspline"])
+def test_guard_skips_only_what_it_can_prove_is_above_the_margin(evaluation_path, basis):
     """After a full evaluation the guard leaves out every sample its bound shows above the
     margin (all of them: it answers 0 without evaluating): over random walks of the nodes,
     every sample left out is above the margin, every answer equals a fresh guard's (which
-    has nothing to skip from), and small moves skip every sample or evaluate only a few."""
+    has nothing to skip from), and small moves skip every sample or evaluate only a few;
+    on the Bernstein basis and on a local one (sparse basis gradients)."""
     rng = np.random.default_rng(11)
-    lattice = _rotated_lattice((4, 3, 3))
+    frame = _rotated_lattice((4, 3, 3))
+    lattice = Lattice(frame.shape, frame.origin, frame.axes, basis)
     points = _inside_frame(lattice, 400, seed=12)
 
     def fresh():
