@@ -40,8 +40,10 @@ INSIDE = 0.5
 GUARD_BLOCK = 1 << 16
 #: the fold guard evaluates only the samples its bound leaves (:meth:`FoldGuard._candidates`)
 #: while they are at most this share of all; more, and it evaluates every one, which renews
-#: the bound's reference
-PARTIAL = 0.25
+#: the bound's reference (a partial evaluation does not, so the same samples would come
+#: back at every later step: on the torus stretch 0.25 took 33 partial evaluations and 11 ms
+#: in the guard, 0.05 one and 8.4 ms)
+PARTIAL = 0.05
 
 
 def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) -> np.ndarray:
