@@ -358,9 +358,10 @@ class FoldGuard:
     ``dP/dX[node, a] = sum_p sum_b phi'(det_p) cof_p[a, b] G[b, p, node]``, two matrix
     products per evaluation, over the samples within the margin only: det J at every
     sample comes from the compiled kernels when they are ready (the NumPy path takes it
-    from ``G`` too). A local basis keeps ``G`` sparse (:class:`SparseGradients`: 64 nodes
-    per sample), and its Gauss-Newton term is sparse too above
-    :data:`core.springs.SPARSE_VARIABLES` node coordinates.
+    from ``G`` too). Samples that a bound from the last full evaluation proves above the
+    margin are not evaluated at all (:meth:`_candidates`; usually every one). A local basis
+    keeps ``G`` sparse (:class:`SparseGradients`: 64 nodes per sample), and its Gauss-Newton
+    term is sparse too above :data:`core.springs.SPARSE_VARIABLES` node coordinates.
 
     Parameters
     ----------
