@@ -4,7 +4,6 @@ mesh, so the full mesh is evaluated once (for the result), never on the way in."
 import numpy as np
 import pytest
 
-from isochor.core import kernels
 from isochor.core.goal.spec import Goal
 from isochor.core.scenario.examples import example_scenario
 from isochor.core.scenario.problem import build
@@ -64,22 +63,17 @@ def _first(surface) -> int:
 
 
 def test_a_drag_evaluates_the_full_mesh_once_and_solves_as_before(solved, monkeypatch):
-    """Both solves run on the NumPy path: each solve keeps the path it starts on
-    (:func:`isochor.core.kernels.one_path`), and the compiled kernels, loading in the
-    background, could otherwise arrive between the two, which then round differently."""
     problem, _ = solved
     full = problem.surface.level(-1)
     counting = _Counting(full.volume_op)
     monkeypatch.setattr(full, "volume_op", counting)
     full._last = (None, 0.0)  # forget the memo of an earlier solve
-    with kernels.numpy_path():
-        records, result = _solve(problem)
+    records, result = _solve(problem)
     assert counting.calls == 1  # the result's measurement, after the last record
     # the same solve as when the full mesh decides where to start
     monkeypatch.setattr(multilevel, "_missed", lambda *args: False)
     full._last = (None, 0.0)
-    with kernels.numpy_path():
-        before, again = _solve(problem)
+    before, again = _solve(problem)
     assert counting.calls == 3  # the start and the result
     assert [r.level for r in records] == [r.level for r in before]
     assert np.array_equal(result.nodes, again.nodes) and result.converged == again.converged
