@@ -234,31 +234,6 @@ def test_a_model_too_far_for_its_size_is_refused(size, offset):
         isochor.Session((mesh.vertices + offset, mesh.faces), (3, 3, 3))
 
 
-def test_the_far_check_decides_as_the_summed_area_does():
-    """The refusal's cheap area bound (faces x the box's squared diagonal) only skips the sum
-    where it passes: at offsets from near the origin to beyond the limit, a model is refused
-    exactly when ``ulp x area > tolerance x volume`` with the area summed."""
-    from isochor.core.lattice import Lattice
-    from isochor.core.scenario.problem import _check_digits
-
-    mesh = icosphere(2)
-    faces = mesh.faces
-    tol = 5e-4
-    for offset in 10.0 ** np.arange(0, 16, 0.25):
-        moved = TriMesh(mesh.vertices * 3.0 + offset, faces)
-        lattice = Lattice.around(moved.vertices, (3, 3, 3), 0.05)
-        volume = signed_volume(moved.vertices, faces)
-        tri = moved.vertices[faces]
-        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        far = max(np.abs(lattice.rest_nodes).max(), np.abs(moved.vertices).max())
-        refused = np.spacing(far) * area.sum() > tol * abs(volume)
-        if refused:
-            with pytest.raises(IsochorError, match="too far from the origin"):
-                _check_digits(lattice, moved, tol, volume)
-        else:
-            _check_digits(lattice, moved, tol, volume)
-
-
 # -- the written file's volume ---------------------------------------------------------------
 def test_a_float32_output_reports_its_own_volume_and_warns(tmp_path):
     thin = box((1.0, 1.0, 1e-4))

@@ -233,36 +233,28 @@ def build(
         )
     nodes, fixed = scenario.edit.apply(lattice)
     Mirror.of(lattice, scenario.goal.symmetry)  # a frame the mirror cannot use fails here
+    _check_digits(lattice, levels[-1], scenario.tol_volume)
     surface = EmbeddedSurface(lattice, levels, n_bodies=model.bodies)
-    _check_digits(lattice, levels[-1], scenario.tol_volume, surface.rest_volume)
     fit = coverage(lattice, surface.full.vertices)
     return Problem(scenario, surface, nodes, fixed, model, fit)
 
 
-def _check_digits(lattice: Lattice, mesh, tolerance: float, volume: float) -> None:
+def _check_digits(lattice: Lattice, mesh, tolerance: float) -> None:
     """Refuse a model too far from the origin for its size: its points (and the lattice's
     nodes) are stored as doubles, ``ulp`` apart at their distance, so each may sit up to
     about one ``ulp`` from where it belongs, and the volume by up to ``ulp x area``. Where
     that exceeds the volume tolerance no result could be measured within it (a box 64
-    across is fine at 1e13 and not at 3e14; one 1 across not beyond about 1e10).
+    across is fine at 1e13 and not at 3e14; one 1 across not beyond about 1e10)."""
+    from ..volume import signed_volume
 
-    ``volume`` is the mesh's signed volume (the surface's rest volume, measured once). The
-    area is summed only where a bound decides nothing: no triangle is larger than half the
-    square of the bounding box's diagonal, so when twice that many times the triangles
-    passes, the area (a few roundings above its true value at most) passes too; a model
-    near the origin never sums it."""
     far = max(float(np.abs(lattice.rest_nodes).max()), float(np.abs(mesh.vertices).max()))
     ulp = float(np.spacing(far))
-    volume = abs(volume)
-    lo, hi = mesh.bounds
-    bound = float(mesh.n_faces) * float(np.sum(np.square(hi - lo)))  # 2 x faces x diag^2 / 2
-    if not (volume > 0 and ulp * bound > tolerance * volume):
-        return
     tri = mesh.vertices[mesh.faces]
     area = 0.5 * float(
         np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
     )
-    if ulp * area > tolerance * volume:
+    volume = abs(signed_volume(mesh.vertices, mesh.faces))
+    if volume > 0 and ulp * area > tolerance * volume:
         raise IsochorError(
             f"the model lies too far from the origin for its size: at {far:.3g} doubles are "
             f"{ulp:.3g} apart, which can move its volume by {ulp * area / volume:.2e} of "
