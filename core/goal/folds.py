@@ -447,8 +447,8 @@ class FoldGuard:
         if ref is None:
             return None
         x0, slack, lengths, least, longest = ref
-        e = np.sqrt(np.square(self._reach @ np.abs(nodes - x0)).sum(axis=1))  # (3,)
-        e0, e1, e2 = (float(v) for v in e)
+        moved = self._reach @ np.abs(nodes - x0)  # (3, 3): axis b of J, coordinate
+        e0, e1, e2 = np.sqrt(np.einsum("ij,ij->i", moved, moved)).tolist()
         l0, l1, l2 = longest
         if (l0 + e0) * (l1 + e1) * (l2 + e2) - l0 * l1 * l2 < least:
             return np.zeros(0, dtype=np.intp)  # the usual case: nowhere near a fold
