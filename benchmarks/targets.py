@@ -117,7 +117,7 @@ WHY = {
         "the ratio grew although both are faster than before. Where the guard never acts "
         "(the cow bend) it is skipped: after a full evaluation a bound on how far det J "
         "can move with the nodes answers 0 without evaluating (core/goal/folds.py, "
-        "FoldGuard._inactive), and a preconditioned run stops using its start's "
+        "FoldGuard._candidates), and a preconditioned run stops using its start's "
         "curvature after 40 steps (core/solve/lbfgs.py), which the guard's curvature outdates."
     ),
     "per_body": (

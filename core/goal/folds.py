@@ -35,8 +35,15 @@ from .certify import Occupancy, certify, supported
 BLOCK = 4096
 #: |winding number| above this: inside
 INSIDE = 0.5
-#: (point, node) entries per block while building the guard's basis gradients
-GUARD_BLOCK = 1 << 20
+#: (point, node) entries per block while building the guard's basis gradients (their
+#: temporaries, a few of this size, stay small enough to be reused from block to block)
+GUARD_BLOCK = 1 << 16
+#: the fold guard evaluates only the samples its bound leaves (:meth:`FoldGuard._candidates`)
+#: while they are at most this share of all; more, and it evaluates every one, which renews
+#: the bound's reference (a partial evaluation does not, so the same samples would come
+#: back at every later step: on the torus stretch 0.25 took 33 partial evaluations and 11 ms
+#: in the guard, 0.05 one and 8.4 ms)
+PARTIAL = 0.05
 
 
 def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) -> np.ndarray:
@@ -142,8 +149,9 @@ def _determinants(lattice: Lattice, uvw_t: np.ndarray, nodes: np.ndarray) -> np.
     """``det J`` at lattice coordinates ``uvw_t`` (3, p), blocked over points.
 
     Per block, the three parameter derivatives ``dX/du``, ``dX/dv``, ``dX/dw`` are contracted
-    axis by axis (w by a matrix product, then v, then u), point-minor throughout; the world
-    Jacobian is ``J = Ju @ inv(axes).T``."""
+    axis by axis (w by a matrix product, then v, then u, each a sum of products in
+    ``einsum``: no (l, m, 3, block) temporaries), point-minor throughout; the world Jacobian
+    is ``J = Ju @ inv(axes).T``."""
     l, m, n = lattice.shape
     to_world = np.linalg.inv(lattice.axes).T
     if lattice.local:
@@ -153,20 +161,21 @@ def _determinants(lattice: Lattice, uvw_t: np.ndarray, nodes: np.ndarray) -> np.
     fast = kernels.determinants(uvw_t, grid, to_world)
     if fast is not None:
         return fast
-    x_t = np.ascontiguousarray(grid.transpose(0, 1, 3, 2)).reshape(l * m * 3, n)
+    # rows (j, i, a): the v axis leads, so that its sums run over whole leading blocks
+    x_t = np.ascontiguousarray(grid.transpose(1, 0, 3, 2)).reshape(m * l * 3, n)
     p = uvw_t.shape[1]
     out = np.empty(p)
     for s in range(0, p, BLOCK):
         (bu, bv, bw), (dbu, dbv, dbw) = _parameter_bases(lattice, uvw_t[:, s : s + BLOCK])
         width = bu.shape[1]
-        y_w = (x_t @ bw).reshape(l, m, 3, width)
-        y_dw = (x_t @ dbw).reshape(l, m, 3, width)
-        z_v = (y_w * bv[None, :, None]).sum(axis=1)  # (l, 3, width)
-        z_dv = (y_w * dbv[None, :, None]).sum(axis=1)
-        z_dw = (y_dw * bv[None, :, None]).sum(axis=1)
-        d_u = (z_v * dbu[:, None]).sum(axis=0)  # (3, width): dX/du
-        d_v = (z_dv * bu[:, None]).sum(axis=0)
-        d_w = (z_dw * bu[:, None]).sum(axis=0)
+        y_w = (x_t @ bw).reshape(m, l, 3, width)
+        y_dw = (x_t @ dbw).reshape(m, l, 3, width)
+        z_v = np.einsum("jiap,jp->iap", y_w, bv)  # (l, 3, width)
+        z_dv = np.einsum("jiap,jp->iap", y_w, dbv)
+        z_dw = np.einsum("jiap,jp->iap", y_dw, bv)
+        d_u = np.einsum("iap,ip->ap", z_v, dbu)  # (3, width): dX/du
+        d_v = np.einsum("iap,ip->ap", z_dv, bu)
+        d_w = np.einsum("iap,ip->ap", z_dw, bu)
         c0, c1, c2 = (
             to_world[0, e] * d_u + to_world[1, e] * d_v + to_world[2, e] * d_w for e in range(3)
         )
@@ -315,10 +324,8 @@ class SparseGradients:
         return int(sum(g.data.nbytes + g.indices.nbytes + g.indptr.nbytes for g in self.g))
 
     def reach(self) -> np.ndarray:
-        """(nodes,) the largest ``|grad w_node|`` over the samples."""
-        squares = self.g[0].multiply(self.g[0]) + self.g[1].multiply(self.g[1])
-        squares = squares + self.g[2].multiply(self.g[2])
-        return np.sqrt(np.asarray(squares.max(axis=0).todense()).ravel())
+        """(3, nodes) the largest ``|d w_node / dx_b|`` over the samples, per axis b."""
+        return np.stack([np.asarray(abs(g).max(axis=0).todense()).ravel() for g in self.g])
 
     def columns(self, x: np.ndarray, rows=slice(None)) -> np.ndarray:
         """(3, a, 3) columns of the Jacobians at the samples ``rows``."""
@@ -351,9 +358,10 @@ class FoldGuard:
     ``dP/dX[node, a] = sum_p sum_b phi'(det_p) cof_p[a, b] G[b, p, node]``, two matrix
     products per evaluation, over the samples within the margin only: det J at every
     sample comes from the compiled kernels when they are ready (the NumPy path takes it
-    from ``G`` too). A local basis keeps ``G`` sparse (:class:`SparseGradients`: 64 nodes
-    per sample), and its Gauss-Newton term is sparse too above
-    :data:`core.springs.SPARSE_VARIABLES` node coordinates.
+    from ``G`` too). Samples that a bound from the last full evaluation proves above the
+    margin are not evaluated at all (:meth:`_candidates`; usually every one). A local basis
+    keeps ``G`` sparse (:class:`SparseGradients`: 64 nodes per sample), and its Gauss-Newton
+    term is sparse too above :data:`core.springs.SPARSE_VARIABLES` node coordinates.
 
     Parameters
     ----------
@@ -377,15 +385,19 @@ class FoldGuard:
         uvw_t = np.ascontiguousarray(lattice.to_parameters(points).T)
         #: (3, k, 3) the samples' lattice coordinates and inv(axes).T: det J by the kernels
         self._uvw_t, self._to_world = uvw_t, inv.T
-        #: (nodes at the last full evaluation, its min det J - margin, its max |J|_F)
-        self._ref: tuple[np.ndarray, float, float] | None = None
+        #: the last full evaluation (see :meth:`_candidates`): its nodes, each sample's
+        #: det J - margin, a bound on each sample's column lengths of J ((3, k), or (1, k)
+        #: for all three), their least and largest values
+        self._ref: tuple | None = None
         #: a local basis's sparse gradients (None: Bernstein's dense ``_g``)
         self._sparse = SparseGradients(lattice, uvw_t) if lattice.local else None
         if self._sparse is not None:
             self._g = np.zeros((3, 0, 0))
-            self._reach = self._sparse.reach() if k else np.zeros(0)
+            self._reach = self._sparse.reach() if k else np.zeros((3, nodes))
             return
         self._g = g = np.empty((3, k, nodes))
+        #: (3, nodes) the largest |dB_node / dx_b| over the samples (see :meth:`_candidates`)
+        self._reach = reach = np.zeros((3, nodes))
         step = max(1, GUARD_BLOCK // nodes)
         for s in range(0, k, step):
             (bu, bv, bw), (dbu, dbv, dbw) = _parameter_bases(lattice, uvw_t[:, s : s + step])
@@ -395,9 +407,9 @@ class FoldGuard:
                 for x, y, z in ((dbu, bv, bw), (bu, dbv, bw), (bu, bv, dbw))
             ]
             for b in range(3):
-                g[b, s : s + width] = (inv[b, 0] * d[0] + inv[b, 1] * d[1] + inv[b, 2] * d[2]).T
-        #: (nodes,) the largest |grad B_node| over the samples (see :meth:`_inactive`)
-        self._reach = np.sqrt(np.einsum("bpn,bpn->pn", g, g)).max(axis=0) if k else np.zeros(0)
+                block = inv[b, 0] * d[0] + inv[b, 1] * d[1] + inv[b, 2] * d[2]
+                g[b, s : s + width] = block.T
+                np.maximum(reach[b], np.abs(block, out=block).max(axis=1), out=reach[b])
 
     @property
     def nbytes(self) -> int:
@@ -415,71 +427,118 @@ class FoldGuard:
 
     def determinants(self, nodes: np.ndarray) -> np.ndarray:
         """(k,) ``det J`` at the sample points for node positions ``nodes`` (nodes, 3)."""
-        return self._evaluate(nodes)
+        return self._evaluate(nodes)[0]
 
-    def _inactive(self, nodes: np.ndarray) -> bool:
-        """Whether no sample can be within the margin at ``nodes``, proven from the last
-        full evaluation (so the penalty and its derivatives are exactly zero, unevaluated).
+    def _candidates(self, nodes: np.ndarray) -> np.ndarray | None:
+        """The samples that may be within the margin at ``nodes``, proven from the last full
+        evaluation (every other one is above it, so its penalty and derivatives are exactly
+        zero, unevaluated); None: no full evaluation to prove it from.
 
-        ``J_p`` moves by ``D_p = sum_n d_n grad B_n(p)^T`` for node moves ``d_n``, so
-        ``|D_p|_F <= e = sum_n |d_n| reach_n``. det is multilinear in the columns, each
-        column of ``J_p`` is at most ``j = max_p |J_p|_F`` long and each of ``D_p`` at most
-        ``e``: ``|det(J_p + D_p) - det J_p| <= (j + e)^3 - j^3``. When that is below the
-        slack ``min_p det J_p - margin``, every sample stays above the margin."""
+        ``J_p`` moves by ``D_p = sum_n grad B_n(p) d_n^T`` for node moves ``d_n``: its
+        column b by ``sum_n dB_n(p)/dx_b d_n``, at most ``e_b = |sum_n reach[b, n] |d_n||``
+        long (``|d_n|`` taken per coordinate). det is multilinear in the columns and
+        ``|det [a b c]| <= |a| |b| |c|`` (Hadamard), so with ``L_b`` the columns' lengths at
+        the evaluation, ``|det(J_p + D_p) - det J_p| <= prod_b (L_b + e_b) - prod_b L_b``,
+        which grows with each ``L_b``. A sample whose slack ``det J_p - margin`` exceeds
+        that bound stays above the margin. The test runs once over all samples with the
+        largest lengths and the least slack (the usual case: none can be near), and only
+        where that fails sample by sample."""
         ref = self._ref  # one tuple: another thread may replace it, never half of it
-        if ref is None or ref[1] <= 0:
-            return False
-        x0, slack, j = ref
-        e = float(np.sqrt(np.einsum("ij,ij->i", nodes - x0, nodes - x0)) @ self._reach)
-        return (j + e) ** 3 - j**3 < slack
+        if ref is None:
+            return None
+        x0, slack, lengths, least, longest = ref
+        moved = self._reach @ np.abs(nodes - x0)  # (3, 3): axis b of J, coordinate
+        e0, e1, e2 = np.sqrt(np.einsum("ij,ij->i", moved, moved)).tolist()
+        l0, l1, l2 = longest
+        if (l0 + e0) * (l1 + e1) * (l2 + e2) - l0 * l1 * l2 < least:
+            return np.zeros(0, dtype=np.intp)  # the usual case: nowhere near a fold
+        a, b, c = lengths if len(lengths) == 3 else (lengths[0],) * 3
+        # prod (L_b + e_b) - prod L_b, expanded: no cancellation of the lengths' product
+        bound = e0 * (b + e1) * (c + e2) + a * (e1 * (c + e2) + b * e2)
+        return np.flatnonzero(bound >= slack)
 
-    def _evaluate(self, nodes: np.ndarray) -> np.ndarray:
-        """det J at every sample; remembers the slack and ``max |J|_F`` for
-        :meth:`_inactive`. The compiled kernels evaluate the Bernstein polynomials per
-        sample (:func:`isochor.core.kernels.determinants`); the NumPy path multiplies the
-        stored basis gradients (``3 k nodes`` numbers read each time)."""
+    def _evaluate(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """det J at every sample, and the columns of J where the NumPy path made them
+        ((3, k, 3), as :meth:`_columns`; None from the kernels); remembers, for
+        :meth:`_candidates`, each sample's slack and a bound on its columns' lengths. The
+        compiled kernels evaluate the Bernstein polynomials per sample
+        (:func:`isochor.core.kernels.determinants`, with ``|J|_F``, which bounds every
+        column); the NumPy path multiplies the stored basis gradients (``3 k nodes``
+        numbers read each time) and measures each column."""
         x = np.array(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
-        l, m, n = self.lattice.shape
+        fast = self._compiled(x, self._uvw_t, frobenius=True)
+        cols = None
+        if fast is not None:
+            dets, squares = fast
+            squares = squares[None]
+        else:
+            c0, c1, c2 = cols = self._columns(x)
+            dets = np.einsum("pa,pa->p", c0, np.cross(c1, c2))
+            squares = np.einsum("bpa,bpa->bp", cols, cols)
+        if self.n_points:
+            lengths = np.sqrt(squares)
+            slack = dets - self.margin
+            longest = lengths.max(axis=1)
+            longest = tuple(float(v) for v in (longest if len(longest) == 3 else [longest[0]] * 3))
+            self._ref = (x, slack, lengths, float(slack.min()), longest)
+        return dets, cols
+
+    def _compiled(self, x: np.ndarray, uvw_t: np.ndarray, frobenius: bool = False):
+        """det J (and ``|J|_F^2`` with ``frobenius``) at lattice coordinates ``uvw_t`` by
+        the compiled kernels; None where they are not ready."""
         lat = self.lattice
         if lat.local:
-            fast = kernels.local_determinants(
-                self._uvw_t,
+            return kernels.local_determinants(
+                uvw_t,
                 lb.codes(lat.basis),
                 lat.displacements(x),
                 lat.shape,
                 self._to_world,
-                frobenius=True,
+                frobenius=frobenius,
             )
-        else:
-            fast = kernels.determinants(
-                self._uvw_t, x.reshape(l, m, n, 3), self._to_world, frobenius=True
-            )
+        grid = x.reshape(*lat.shape, 3)
+        return kernels.determinants(uvw_t, grid, self._to_world, frobenius=frobenius)
+
+    def _determinants_at(self, nodes: np.ndarray, rows: np.ndarray):
+        """det J at the samples ``rows`` only, the same numbers as :meth:`_evaluate` there,
+        and their columns (None from the kernels)."""
+        x = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+        fast = self._compiled(x, np.ascontiguousarray(self._uvw_t[:, rows]))
         if fast is not None:
-            dets, squares = fast
-        else:
-            c0, c1, c2 = cols = self._columns(x)
-            dets = np.einsum("pa,pa->p", c0, np.cross(c1, c2))
-            squares = np.einsum("bpa,bpa->p", cols, cols)
-        if self.n_points:
-            self._ref = (x, float(dets.min()) - self.margin, float(np.sqrt(squares.max())))
-        return dets
+            return fast, None
+        c0, c1, c2 = cols = self._columns(x, rows)
+        return np.einsum("pa,pa->p", c0, np.cross(c1, c2)), cols
 
     def _near(self, nodes: np.ndarray):
         """``(short, active, cof)`` at the samples within the margin: how far each is below
         it, which they are, and the cofactor columns of their J (``d det / d column b``,
-        (3, a, 3)); None where none is (or the guard is off)."""
+        (3, a, 3)); None where none is (or the guard is off). Only the samples
+        :meth:`_candidates` leaves are evaluated, all of them (a full evaluation, which the
+        next proofs start from) when there are many."""
         if self.n_points == 0 or self.weight == 0:
             return None
         nodes = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
-        if self._inactive(nodes):  # the usual case: provably nowhere near a fold
+        rows = self._candidates(nodes)
+        if rows is not None and rows.size == 0:  # provably nowhere near a fold
             return None
-        short = np.maximum(self.margin - self._evaluate(nodes), 0.0)
-        active = np.flatnonzero(short > 0)
-        if active.size == 0:  # nowhere near a fold after all
+        if rows is None or rows.size > PARTIAL * self.n_points:
+            rows = slice(None)
+            dets, cols = self._evaluate(nodes)
+        else:
+            dets, cols = self._determinants_at(nodes, rows)
+        below = self.margin - dets
+        within = np.flatnonzero(below > 0)
+        if within.size == 0:  # nowhere near a fold after all
             return None
-        a0, a1, a2 = self._columns(nodes, active if active.size < self.n_points else slice(None))
+        short = below[within]
+        active = within if isinstance(rows, slice) else rows[within]
+        # the columns the determinants came from (the kernels make none: made here)
+        if cols is None:
+            a0, a1, a2 = self._columns(nodes, active)
+        else:
+            a0, a1, a2 = cols if within.size == len(dets) else cols[:, within]
         cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)])
-        return short[active], active, cof
+        return short, active, cof
 
     def value_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
         """The penalty and its exact gradient with respect to the node positions.
