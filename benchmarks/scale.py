@@ -228,7 +228,8 @@ def armadillo_child(path: str, repeats: int) -> dict:
     lattice, nodes, fixed = armadillo_bend(levels)
     options = SolverOptions()
     scenario = Scenario({"mesh": str(path)}, lattice_nodes=lattice.shape)
-    surface = EmbeddedSurface(lattice, levels)
+    # the bodies as loading counted them, as the command line's problem has them
+    surface = EmbeddedSurface(lattice, levels, n_bodies=loaded.bodies)
     problem = Problem(scenario, surface, nodes, fixed, Model(tuple(levels)))
     cold = run_solve(problem, nodes, fixed, options)
     out["first_record_cold_s"] = cold.first_record
