@@ -84,6 +84,8 @@ def call(
 def _child(write: int, fn, args, kwargs) -> None:
     """Run ``fn`` and send its outcome; end the process without Python's finalisation
     (nothing of the parent's is flushed or closed twice)."""
+    from os import _exit  # (os's documented exit without interpreter shutdown)
+
     status = 1
     try:
         with os.fdopen(write, "wb") as pipe:
@@ -101,7 +103,7 @@ def _child(write: int, fn, args, kwargs) -> None:
                 _send(pipe, ("error", RuntimeError(f"{type(exc).__name__}: {exc}")))
         status = 0
     finally:
-        os._exit(status)
+        _exit(status)
 
 
 def _send(pipe, message) -> None:
