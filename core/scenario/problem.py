@@ -261,12 +261,12 @@ def _check_digits(lattice: Lattice, mesh, tolerance: float) -> None:
     across is fine at 1e13 and not at 3e14; one 1 across not beyond about 1e10)."""
     from ..volume import signed_volume
 
-    lo, hi = mesh.bounds
-    far = max(
-        float(np.abs(lattice.rest_nodes).max()), float(np.abs(lo).max()), float(np.abs(hi).max())
-    )
+    far = max(float(np.abs(lattice.rest_nodes).max()), float(np.abs(mesh.vertices).max()))
     ulp = float(np.spacing(far))
-    area = _area(mesh.vertices, mesh.faces)
+    tri = mesh.vertices[mesh.faces]
+    area = 0.5 * float(
+        np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    )
     volume = abs(signed_volume(mesh.vertices, mesh.faces))
     if volume > 0 and ulp * area > tolerance * volume:
         raise IsochorError(
@@ -275,18 +275,3 @@ def _check_digits(lattice: Lattice, mesh, tolerance: float) -> None:
             f"itself, more than the tolerance {tolerance:g}; move it nearer the origin (or "
             "raise tolerance.volume)"
         )
-
-
-#: triangles per block of :func:`_area` (its temporaries: about 200 bytes a triangle)
-AREA_BLOCK = 1 << 16
-
-
-def _area(vertices: np.ndarray, faces: np.ndarray) -> float:
-    """The surface area, a block of triangles at a time (all at once the temporaries of a
-    1.38M-triangle model took 330 MB)."""
-    total = 0.0
-    for start in range(0, len(faces), AREA_BLOCK):
-        tri = vertices[faces[start : start + AREA_BLOCK]]
-        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        total += float(np.sqrt(np.einsum("ij,ij->i", cross, cross)).sum())
-    return 0.5 * total
