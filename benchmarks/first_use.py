@@ -16,7 +16,8 @@
   within noise; a bigger model starts numba before its file is read (it loads while the
   file does) and the solve waits for it;
 * the first solve of the 1.38M and 5.5M armadillos (one and two midpoint subdivisions of
-  the 346k one, made into the cache folder) and the command's peak memory per triangle.
+  the 346k one, made into the cache folder) and the command's peak memory per triangle,
+  with the forked child that makes its level pyramid (:class:`TreePeak`).
 
 Each command runs through a two-line wrapper that calls the command line's ``main`` and
 then prints its own peak memory and whether numba was imported (the same imports as
