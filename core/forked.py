@@ -10,8 +10,9 @@ made with ``fork`` (it sees this process's arrays without copying them) and take
 result back through a pipe, pickled; ``progress`` calls are relayed to the caller as they
 come.
 
-It forks only where that is safe and worth it: on a system with ``os.fork`` and only while
-this process runs one thread (a fork copies the calling thread alone; a lock another
+It forks only where that is safe: on Linux (macOS's system libraries, Accelerate among
+them, are not safe to use in a forked child; Windows has no fork) and only while this
+process runs one thread (a fork copies the calling thread alone; a lock another
 thread holds would stay locked in the child). Otherwise, and if the child ends without a
 result (it cannot be made, or it was killed), the function runs here: the same code on the
 same arrays, the same result. An exception the function raises in the child is raised
@@ -25,6 +26,7 @@ import os
 import pickle
 import signal
 import struct
+import sys
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -33,8 +35,10 @@ _HEADER = struct.Struct("<Q")
 
 
 def can_fork() -> bool:
-    """Whether :func:`call` would run its function in a child."""
-    return hasattr(os, "fork") and threading.active_count() == 1
+    """Whether :func:`call` would run its function in a child: on Linux (macOS's system
+    libraries are not safe to use in a forked child; Windows cannot fork) while this
+    process runs one thread."""
+    return sys.platform.startswith("linux") and threading.active_count() == 1
 
 
 def call(
