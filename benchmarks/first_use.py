@@ -13,8 +13,9 @@
   ``WORTH_TRIANGLES`` triangles never loads numba (the compiled solve saves less than
   loading numba costs, about 0.5 s of CPU from a warm cache, and loading it beside the
   solve on two cores slows the solve), so both runs take the same path and the ratio is 1
-  within noise; a bigger model starts numba before its file is read (it loads while the
-  file does) and the solve waits for it;
+  within noise; a bigger model starts numba once its level pyramid is made (made in a
+  forked child, which numba's memory would add to) and waits for it before building the
+  problem;
 * the first solve of the 1.38M and 5.5M armadillos (one and two midpoint subdivisions of
   the 346k one, made into the cache folder) and the command's peak memory per triangle,
   with the forked child that makes its level pyramid (:class:`TreePeak`).
@@ -481,8 +482,9 @@ def section(rows: list[Row], notes: list[str], command: str) -> list[str]:
         "`WORTH_TRIANGLES` a command never loads numba: the compiled solve saves less than",
         "loading numba costs (about 0.5 s of CPU from a warm cache; the 346k armadillo's",
         "command took 8.7 s waiting for it against 7.5 s on NumPy), and loading it beside",
-        "the solve on two cores slows the solve down; from there on numba starts before the",
-        "model file is read and the solve waits for it (the file takes longer to read).",
+        "the solve on two cores slows the solve down; from there on numba starts once the",
+        "model's level pyramid is made (in a forked child, whose peak numba's 110 MB would",
+        "add to) and the problem is built when it is ready.",
         "",
     ]
     return lines + target_table(rows, notes)
