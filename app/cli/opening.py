@@ -21,10 +21,14 @@ def one_shot() -> None:
 
 def open_session(scenario: Scenario, progress=None) -> Session:
     """The scenario's session, with the compiled kernels where they pay: a big model file
-    starts them before it is read (they load while it does) and the solve waits for them;
-    a small model never loads them, since numba would load beside the solve on the same
-    cores and slow it down (:func:`isochor.core.kernels.worth`; the benchmark's cold
-    command rows measure both).
+    starts them once its level pyramid is made (they load while the problem is built) and
+    the solve waits for them; a small model never loads them, since numba would load
+    beside the solve on the same cores and slow it down
+    (:func:`isochor.core.kernels.worth`; the benchmark's cold command rows measure both).
+
+    Not before the pyramid: it is made in a forked child where the process runs one
+    thread (:func:`isochor.core.scenario.problem.pyramid_of`), so that fast-simplification's
+    memory goes when the child ends, and numba's 110 MB would add to the child's peak.
 
     ``progress``: ``callable(stage, fraction)`` while the model loads (see
     :class:`isochor.core.api.Session`)."""
@@ -32,11 +36,21 @@ def open_session(scenario: Scenario, progress=None) -> Session:
     from ...core.api import Session
 
     one_shot()
+    big = False
     if "path" in scenario.model:
         with contextlib.suppress(OSError):
-            if scenario.model_path().stat().st_size >= kernels.WORTH_BYTES:
-                kernels.start()
-    session = Session(scenario, progress=progress) if progress else Session(scenario)
+            big = scenario.model_path().stat().st_size >= kernels.WORTH_BYTES
+
+    def told(stage: str, fraction: float) -> None:
+        if big and stage == "load" and fraction >= 1.0:
+            # the pyramid is made: the problem is built on the path the solve takes (the
+            # two paths round differently; built before numba is ready, the level volumes
+            # would differ in their last bits from run to run)
+            kernels.ready()
+        if progress is not None:
+            progress(stage, fraction)
+
+    session = Session(scenario, progress=told) if progress or big else Session(scenario)
     if kernels.worth(session.problem.surface.full.n_faces):
         kernels.ready()
     return session

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import kernels
+from .. import forked, kernels
 from ..errors import IsochorError
 from ..goal.handles import Handle
 from ..goal.spec import Goal
@@ -139,6 +139,9 @@ ProgressCallback = Callable[[str, float], None]
 #: the share of loading a model file that reading and cleaning it take (the level pyramid
 #: the rest; measured on the 1.38M armadillo: about a third)
 READ_SHARE = 0.35
+#: a model of this many triangles has its coarse levels made in a forked child, where the
+#: process can fork (:func:`pyramid_of`)
+APART_TRIANGLES = 100_000
 
 
 def load_model(path: str | Path, progress: ProgressCallback | None = None) -> Model:
@@ -157,15 +160,26 @@ def pyramid_of(
     mesh: TriMesh, bodies: int | None, progress: ProgressCallback | None, done: float = 0.0
 ) -> list[TriMesh]:
     """:func:`build_pyramid`, telling ``progress`` the share of loading done: ``done``
-    before, 1 at the end."""
-    if progress is None:
-        return build_pyramid(mesh, bodies=bodies)
-    progress("load", done)
-    levels = build_pyramid(
-        mesh, bodies=bodies, progress=lambda f: progress("load", done + (1 - done) * f)
-    )
-    progress("load", 1.0)
+    before, 1 at the end. From :data:`APART_TRIANGLES` triangles on, the coarse levels are
+    made in a forked child (:mod:`isochor.core.forked`): fast-simplification never frees
+    its working copy of the finest level (about 300 bytes a triangle)."""
+    if progress is not None:
+        progress("load", done)
+    share = None if progress is None else (lambda f: progress("load", done + (1 - done) * f))
+    if mesh.n_faces < APART_TRIANGLES:
+        levels = build_pyramid(mesh, bodies=bodies, progress=share)
+    else:
+        coarse = forked.call(_coarse_levels, mesh, bodies, progress=share)
+        levels = [TriMesh(v, f, cv, cf) for v, f, cv, cf in coarse] + [mesh]
+    if progress is not None:
+        progress("load", 1.0)
     return levels
+
+
+def _coarse_levels(mesh: TriMesh, bodies: int | None, progress=None) -> list[tuple]:
+    """The arrays of the pyramid's levels but the finest (``mesh`` itself), to be pickled."""
+    levels = build_pyramid(mesh, bodies=bodies, progress=progress)
+    return [(m.vertices, m.faces, m.cap_vertices, m.cap_faces) for m in levels[:-1]]
 
 
 def scenario_model(

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -164,16 +165,30 @@ def simplify(mesh: TriMesh, target: int) -> TriMesh | None:
     degenerate and cancelling triangles and unused vertices). None if nothing is left."""
     import fast_simplification  # compiled extension: imported on the first use
 
-    with _LOCK:  # (the extension needs writable arrays: copies of the frozen ones)
-        points, faces = fast_simplification.simplify(
-            np.array(mesh.vertices), mesh.faces.astype(np.int32), target_count=int(target)
-        )
+    with _LOCK, _writable(mesh.vertices) as vertices, _writable(mesh.faces) as corners:
+        points, faces = fast_simplification.simplify(vertices, corners, target_count=int(target))
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     faces, _ = drop_degenerate(faces)
     faces, _ = drop_duplicates(faces)
     if len(faces) < 4:
         return None
     return TriMesh(*compact(np.asarray(points, dtype=np.float64), faces))
+
+
+@contextmanager
+def _writable(a: np.ndarray):
+    """``a`` writable for the extension, which takes writable arrays only and reads them
+    into its own: a frozen array that owns its data is unfrozen for the call (copies of
+    the finest level's vertices and faces took 26 bytes a triangle at the peak), any
+    other copied."""
+    if a.flags.writeable or not (a.flags.owndata and a.flags.c_contiguous):
+        yield a if a.flags.writeable else np.array(a)
+        return
+    a.flags.writeable = True
+    try:
+        yield a
+    finally:
+        a.flags.writeable = False
 
 
 def _join(bodies: list[TriMesh], center: np.ndarray, size: float) -> TriMesh:
