@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -276,6 +277,33 @@ def test_numba_caches_in_a_user_folder(tmp_path):
     folder = _child(code, **env).strip()
     assert folder.startswith(str(tmp_path / "isochor" / "numba")), folder
     assert _child(code, NUMBA_CACHE_DIR=str(tmp_path / "mine")).strip() == str(tmp_path / "mine")
+
+
+def test_the_cache_key_covers_every_kernel_source(tmp_path):
+    """numba checks only the time stamp of the file that defines a kernel, so the cache
+    folder is named by a hash of the kernel sources: each listed source exists, every
+    module that compiles a function is listed, and editing one changes the key."""
+    import shutil
+
+    from isochor.core.kernels import base
+
+    folder = Path(base.__file__).resolve().parent
+    missing = [name for name in base.SOURCES if not (folder / name).is_file()]
+    assert not missing, f"SOURCES names files that do not exist: {missing}"
+    compiling = {f.name for f in folder.glob("*.py") if "njit(" in f.read_text()}
+    assert compiling - {"base.py"} and compiling <= set(base.SOURCES), compiling
+    for name in base.SOURCES:
+        shutil.copy(folder / name, tmp_path / name)
+    assert base.source_key(tmp_path) == base.source_key()
+    keys = {base.source_key()}
+    for name in base.SOURCES:
+        text = (tmp_path / name).read_text()
+        (tmp_path / name).write_text(text + "\n# edited\n")
+        keys.add(base.source_key(tmp_path))
+        (tmp_path / name).write_text(text)
+    assert len(keys) == len(base.SOURCES) + 1  # each edit makes a new folder
+    (tmp_path / base.SOURCES[0]).unlink()
+    assert base.source_key(tmp_path) not in keys
 
 
 def test_winding_numbers_match_numpy(compiled):
