@@ -134,6 +134,48 @@ def test_volume_and_gradient_match_numpy_on_any_triangle_set(compiled, name):
     assert close(grad, corner, 1e-11)
 
 
+@pytest.mark.parametrize("name", list(_meshes()))
+def test_the_one_pass_evaluation_gives_the_three_passes_numbers(compiled, name):
+    """VolumeOperator.node_gradient (the basis, the fans and the transpose range by range)
+    against basis.apply, value_and_gradient and apply_transpose: bit for bit on the
+    compiled path, and the same call on the NumPy path within rounding."""
+    v, f = _meshes()[name]
+    lat = Lattice.around(v, (3, 4, 3))
+    basis = lat.point_basis(v)
+    op = VolumeOperator(f, len(v))
+    nodes = lat.rest_nodes + np.random.default_rng(4).normal(scale=0.05, size=(lat.n_nodes, 3))
+    center = v.mean(axis=0) + 0.01
+    value, grad = op.node_gradient(basis, nodes, center)
+    v0, g0 = op.value_and_gradient(basis.apply(nodes), center)
+    assert value == v0 and np.array_equal(grad, basis.apply_transpose(g0))
+    with kernels.numpy_path():
+        v1, g1 = op.node_gradient(basis, nodes, center)
+    assert abs(value - v1) <= 1e-12 * max(abs(v1), 1e-3) and close(grad, g1)
+
+
+def test_the_one_pass_evaluation_across_ranges_and_a_seam(compiled):
+    """A torus of three ranges of vertices: each range applies the basis to a window
+    about itself, and the seam's neighbours (numbered a whole torus away) are far points;
+    the same numbers as the three passes, on one thread or three."""
+    mesh = torus(256, 160)
+    assert mesh.n_vertices > 2 * kernels.CHUNK
+    lat = skewed_lattice((4, 3, 5))
+    basis = lat.point_basis(mesh.vertices)
+    op = VolumeOperator(mesh.faces, mesh.n_vertices)
+    nodes = lat.rest_nodes + np.random.default_rng(5).normal(scale=0.1, size=(lat.n_nodes, 3))
+    v0, g0 = op.value_and_gradient(basis.apply(nodes), mesh.center)
+    three = (v0, basis.apply_transpose(g0))
+    for n in (1, 3):
+        previous = kernels.set_threads(n)
+        try:
+            value, grad = op.node_gradient(basis, nodes, mesh.center)
+        finally:
+            kernels.set_threads(previous)
+        assert value == three[0] and np.array_equal(grad, three[1])
+    plan = kernels.evaluation_plan(kernels.fans(mesh.faces, mesh.n_vertices))
+    assert 0 < plan.window < kernels.CHUNK and len(plan.far) > 0  # the seam went far
+
+
 def test_results_do_not_depend_on_the_thread_count(compiled):
     mesh = torus(256, 160)  # more points and faces than two ranges of work
     assert mesh.n_vertices > 2 * kernels.CHUNK

@@ -30,6 +30,7 @@ SOURCES = (
     "basis.py",
     "bern.py",
     "folds.py",
+    "fused.py",
     "local.py",
     "signatures.py",
     "solver.py",

@@ -303,6 +303,15 @@ def apply_range(uvw, x, out, start, stop):
 
     uvw : (3, p) lattice coordinates; x : (l, m, 3 n) nodes, ``x[i, j, 3 k + c]``.
     """
+    u, v, t = uvw[0, start:stop], uvw[1, start:stop], uvw[2, start:stop]
+    _apply_rows(u, v, t, x, out[0, start:stop], out[1, start:stop], out[2, start:stop])
+
+
+@njit(**INLINE)
+def _apply_rows(u, v, t, x, r0, r1, r2):
+    """``r_c[q]``: the deformed points of the lattice coordinates ``u, v, t`` (rows of one
+    length; blocks of ``BLOCK`` from the first), x as in :func:`apply_range`."""
+    start, stop = 0, len(u)
     l, m, n3 = x.shape
     n = n3 // 3
     ng = (n + 2) // 3
@@ -316,9 +325,9 @@ def apply_range(uvw, x, out, start, stop):
     o0, o1, o2 = o[0], o[1], o[2]
     for s in range(start, stop, BLOCK):
         w = min(BLOCK, stop - s)
-        _bernstein(uvw[0, s : s + w], w, l - 1, bu)
-        _bernstein(uvw[1, s : s + w], w, m - 1, bv)
-        _bernstein(uvw[2, s : s + w], w, n - 1, bw)
+        _bernstein(u[s : s + w], w, l - 1, bu)
+        _bernstein(v[s : s + w], w, m - 1, bv)
+        _bernstein(t[s : s + w], w, n - 1, bw)
         for q in range(w):
             o0[q] = 0.0
             o1[q] = 0.0
@@ -370,17 +379,25 @@ def apply_range(uvw, x, out, start, stop):
                             o0, o1, o2, a_i, a_j, z0, z1, z2, bw[k], bw[k + 1], bw[k + 2], xf,
                             at + 3 * k, w,
                         )  # fmt: skip
-        r0, r1, r2 = out[0, s : s + w], out[1, s : s + w], out[2, s : s + w]
         for q in range(w):
-            r0[q] = o0[q]
-            r1[q] = o1[q]
-            r2[q] = o2[q]
+            r0[s + q] = o0[q]
+            r1[s + q] = o1[q]
+            r2[s + q] = o2[q]
 
 
 @njit(**REDUCE)
 def transpose_range(uvw, g, l, m, n, start, stop, acc):
     """``acc[((i m + j) n + k) 3 + c] += sum_q B_ijk(q) g[c, q]`` over the points
     ``start..stop``; uvw and g are (3, p)."""
+    u, v, t = uvw[0, start:stop], uvw[1, start:stop], uvw[2, start:stop]
+    _transpose_rows(u, v, t, g[0, start:stop], g[1, start:stop], g[2, start:stop], l, m, n, acc)
+
+
+@njit(**INLINE_REDUCE)
+def _transpose_rows(u, v, t, h0, h1, h2, l, m, n, acc):
+    """:func:`transpose_range` of the rows ``u, v, t`` (lattice coordinates) and ``h_c``
+    (per-point values), all of one length, in blocks of ``BLOCK`` from the first."""
+    start, stop = 0, len(u)
     ng = (n + 2) // 3
     n3 = 3 * n
     bu = np.empty((l, BLOCK))
@@ -388,10 +405,10 @@ def transpose_range(uvw, g, l, m, n, start, stop, acc):
     bw = np.empty((n, BLOCK))
     for s in range(start, stop, BLOCK):
         w = min(BLOCK, stop - s)
-        _bernstein(uvw[0, s : s + w], w, l - 1, bu)
-        _bernstein(uvw[1, s : s + w], w, m - 1, bv)
-        _bernstein(uvw[2, s : s + w], w, n - 1, bw)
-        g0, g1, g2 = g[0, s : s + w], g[1, s : s + w], g[2, s : s + w]
+        _bernstein(u[s : s + w], w, l - 1, bu)
+        _bernstein(v[s : s + w], w, m - 1, bv)
+        _bernstein(t[s : s + w], w, n - 1, bw)
+        g0, g1, g2 = h0[s : s + w], h1[s : s + w], h2[s : s + w]
         b0, b1, b2 = bw[0], bw[1], bw[min(2, n - 1)]
         b3, b4 = bw[min(3, n - 1)], bw[min(4, n - 1)]
         # all layers at once up to 5, one loop nest per count (as in apply_range)

@@ -200,3 +200,7 @@ def winding_range(points, corners, out, start, stop):
                 c[0, f] - px, c[1, f] - py, c[2, f] - pz,
             )  # fmt: skip
         out[q] = total / (2.0 * np.pi)
+
+
+#: the fan gradient as a helper compiled into :func:`core.kernels.fused.evaluation_range`
+_fan_gradient = njit(**INLINE)(getattr(fan_gradient_range, "py_func", fan_gradient_range))
