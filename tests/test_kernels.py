@@ -154,26 +154,28 @@ def test_the_one_pass_evaluation_gives_the_three_passes_numbers(compiled, name):
 
 
 def test_the_one_pass_evaluation_across_ranges_and_a_seam(compiled):
-    """A torus of three ranges of vertices: each range applies the basis to a window
-    about itself, and the seam's neighbours (numbered a whole torus away) are far points;
-    the same numbers as the three passes, on one thread or three."""
-    mesh = torus(256, 160)
-    assert mesh.n_vertices > 2 * kernels.CHUNK
+    """A torus of four ranges of vertices: each range applies the basis to a window about
+    itself step by step, a fan may reach 399 vertices ahead (the seam's diagonals: past
+    the window of the step before), and the seam's neighbours (a whole torus away) are
+    far points; the same numbers as the three passes, on one thread or three, for one set
+    of nodes after another (no point left over from the last call)."""
+    mesh = torus(300, 200)
+    assert mesh.n_vertices > 3 * kernels.CHUNK
     lat = skewed_lattice((4, 3, 5))
     basis = lat.point_basis(mesh.vertices)
     op = VolumeOperator(mesh.faces, mesh.n_vertices)
-    nodes = lat.rest_nodes + np.random.default_rng(5).normal(scale=0.1, size=(lat.n_nodes, 3))
-    v0, g0 = op.value_and_gradient(basis.apply(nodes), mesh.center)
-    three = (v0, basis.apply_transpose(g0))
-    for n in (1, 3):
-        previous = kernels.set_threads(n)
+    rng = np.random.default_rng(5)
+    for threads in (1, 3, 3):
+        nodes = lat.rest_nodes + rng.normal(scale=0.1, size=(lat.n_nodes, 3))
+        v0, g0 = op.value_and_gradient(basis.apply(nodes), mesh.center)
+        previous = kernels.set_threads(threads)
         try:
             value, grad = op.node_gradient(basis, nodes, mesh.center)
         finally:
             kernels.set_threads(previous)
-        assert value == three[0] and np.array_equal(grad, three[1])
+        assert value == v0 and np.array_equal(grad, basis.apply_transpose(g0))
     plan = kernels.evaluation_plan(kernels.fans(mesh.faces, mesh.n_vertices))
-    assert 0 < plan.window < kernels.CHUNK and len(plan.far) > 0  # the seam went far
+    assert 0 < plan.window < 399 and len(plan.far) > 0  # the seam went far
 
 
 def test_results_do_not_depend_on_the_thread_count(compiled):
@@ -223,6 +225,7 @@ def test_a_failing_compiled_call_falls_back_to_numpy(compiled, monkeypatch):
         build_fans=broken,
         fan_gradient_range=broken,
         face_volume_range=broken,
+        evaluation_range=broken,
     )
     mesh = sphere_levels(3)[-1]
     lat = Lattice.around(mesh.vertices, (3, 3, 3))
@@ -233,6 +236,13 @@ def test_a_failing_compiled_call_falls_back_to_numpy(compiled, monkeypatch):
     assert kernels.status() == "failed: apply: RuntimeError: boom"
     assert close(pts, mesh.vertices, 1e-12)  # the NumPy path's answer
     assert kernels.ready(0) is False
+    for name, value in (("kernels", fake), ("status", "ready"), ("reason", "")):
+        monkeypatch.setattr(kernels._state, name, value)
+    op = VolumeOperator(mesh.faces, mesh.n_vertices)
+    value, grad = op.node_gradient(basis, lat.rest_nodes)
+    assert kernels.status().startswith("failed: ")
+    assert abs(value - signed_volume(mesh.vertices, mesh.faces)) <= 1e-12 * abs(value)
+    assert grad.shape == (lat.n_nodes, 3)
 
 
 def _child(code: str, **env) -> str:

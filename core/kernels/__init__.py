@@ -352,7 +352,7 @@ def volume_gradient(fan, rows: np.ndarray, center, k=None):
     part = np.zeros(len(ranges))
 
     def task(i):
-        part[i] = k.fan_gradient_range(rows, c[0], c[1], c[2], ptr, seq, grad, *ranges[i])
+        part[i] = k.fan_gradient_range(rows, c[0], c[1], c[2], ptr, seq, grad, *ranges[i], 0.0)
 
     _jitthreads.run(task, len(ranges))
     return float(part.sum()) / 3.0, grad

@@ -5,13 +5,15 @@ transpose, :mod:`core.kernels.basis`), range of vertices by range.
 The three passes one after the other write the (3, m) points and read them back by the
 fans' gathers, then write the (3, m) gradient and read it back with the lattice
 coordinates again: on a million triangles three times the bytes the evaluation must read
-(the coordinates and the fans). Here a range of ``CHUNK`` vertices applies the basis to
-its own vertices and ``window`` on either side (their points stay in the cache), walks
-its fans there, and takes its gradient back to the nodes at once. A neighbour outside
-the window (the seam of a torus, a model numbered without locality) is one of the range's
-*far* points, applied beside the window. The fans are renumbered for that once (a
-:class:`Plan`), so the kernel walks them as :func:`core.kernels.volume.fan_gradient_range`
-does, with the same arithmetic: the numbers are those of the three passes, bit for bit.
+(the coordinates and the fans). Here a range of ``CHUNK`` vertices goes in steps of
+``STEP``: it applies the basis to the points up to ``window`` past the step, walks the
+step's fans there and takes the step's gradient to the nodes at once, so the points and
+the gradient stay in the core's cache. A neighbour outside what has been applied (the
+seam of a torus, a model numbered without locality) is one of the range's *far* points,
+applied first. The fans are renumbered for that once (a :class:`Plan`), so the kernel
+walks them as :func:`core.kernels.volume.fan_gradient_range` does, with the same
+arithmetic and the same order of every sum: the numbers are the three passes', bit for
+bit.
 """
 
 from __future__ import annotations
@@ -23,6 +25,10 @@ import numpy as np
 from .base import KERNEL, njit
 from .basis import _apply_rows, _transpose_rows
 from .volume import _fan_gradient
+
+#: vertices a step within a range (a multiple of the basis's block: the transpose sums
+#: block by block from the range's start either way, so the sums are the same)
+STEP = 2048
 
 
 class Plan(NamedTuple):
@@ -42,17 +48,21 @@ class Plan(NamedTuple):
 def plan(ptr: np.ndarray, seq: np.ndarray, chunk: int, window: int | None = None) -> Plan:
     """The :class:`Plan` of the fans (ptr, seq) for ranges of ``chunk`` vertices: the
     window (by default :func:`_window`'s) and each range's far vertices."""
+    if chunk % STEP:
+        raise ValueError(f"a range of {chunk} vertices is not a whole number of steps")
     n = len(ptr) - 1
     owner = np.repeat(np.arange(n, dtype=np.int64), np.diff(ptr))
     start = seq < 0
     index = np.where(start, -seq.astype(np.int64) - 1, seq)
     r = owner // chunk
-    if window is None:  # what each entry needs: how far it lies beyond its range
-        beyond = np.maximum(np.maximum(r * chunk - index, index - (r + 1) * chunk + 1), 0)
+    # the points a vertex's fan may read: back to its range's window, ahead to its step's
+    # end and the window (what the kernel has applied when it walks that step)
+    ahead = np.minimum((owner // STEP + 1) * STEP, (r + 1) * chunk)
+    if window is None:  # what each entry needs: how far it lies beyond that
+        beyond = np.maximum(np.maximum(r * chunk - index, index - ahead + 1), 0)
         window = _window(beyond, max(1, -(-n // chunk)), chunk)
     lo = np.maximum(r * chunk - window, 0)
-    hi = np.minimum((r + 1) * chunk + window, n)
-    inside = (index >= lo) & (index < hi)
+    inside = (index >= lo) & (index < np.minimum(ahead + window, n))
     ranges = max(1, -(-n // chunk))
     key = np.unique(r[~inside] * n + index[~inside])  # (range, vertex), sorted
     far_range, far = key // n, key % n
@@ -103,9 +113,6 @@ def evaluation_range(
     ``far_uvw`` (3, most far) are scratch."""
     p = uvw.shape[1]
     lo, hi = max(start - window, 0), min(stop + window, p)
-    w = hi - lo
-    u, v, t = uvw[0, lo:hi], uvw[1, lo:hi], uvw[2, lo:hi]
-    _apply_rows(u, v, t, x, points[0, :w], points[1, :w], points[2, :w])
     f0, f1 = far_ptr[r], far_ptr[r + 1]
     nf = f1 - f0
     if nf > 0:
@@ -119,8 +126,22 @@ def evaluation_range(
             far_uvw[0, :nf], far_uvw[1, :nf], far_uvw[2, :nf], x,
             points[0, width:e], points[1, width:e], points[2, width:e],
         )  # fmt: skip
-    total = _fan_gradient(points, cx, cy, cz, ptr[lo:], seq, grad, start - lo, stop - lo)
-    a, b = start - lo, stop - lo
-    u, v, t = uvw[0, start:stop], uvw[1, start:stop], uvw[2, start:stop]
-    _transpose_rows(u, v, t, grad[0, a:b], grad[1, a:b], grad[2, a:b], l, m, n, acc)
+    # steps of STEP vertices: the points are applied just ahead of the fans that read
+    # them, and each step's gradient goes to the nodes at once, so what a step touches
+    # stays in the core's own cache
+    total = 0.0
+    done = lo  # the window's points applied so far: lo..done
+    fan_ptr = ptr[lo:]
+    for s in range(start, stop, STEP):
+        e = min(s + STEP, stop)
+        ahead = min(e + window, hi)
+        if ahead > done:
+            a, b = done - lo, ahead - lo
+            u, v, t = uvw[0, done:ahead], uvw[1, done:ahead], uvw[2, done:ahead]
+            _apply_rows(u, v, t, x, points[0, a:b], points[1, a:b], points[2, a:b])
+            done = ahead
+        a, b = s - lo, e - lo
+        total = _fan_gradient(points, cx, cy, cz, fan_ptr, seq, grad, a, b, total)
+        u, v, t = uvw[0, s:e], uvw[1, s:e], uvw[2, s:e]
+        _transpose_rows(u, v, t, grad[0, a:b], grad[1, a:b], grad[2, a:b], l, m, n, acc)
     return total

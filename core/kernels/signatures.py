@@ -33,7 +33,7 @@ def compile_all() -> SimpleNamespace:
         (_jitbasis.apply_range, t.void(r2, r3, w2, i8, i8)),
         (_jitbasis.transpose_range, t.void(r2, r2, i8, i8, i8, i8, i8, w1)),
         (_jitvolume.build_fans, t.Tuple((array(i8, 1, False), array(i4, 1, False)))(l2, i8)),
-        (_jitvolume.fan_gradient_range, f8(r2, f8, f8, f8, l1, s1, w2, i8, i8)),
+        (_jitvolume.fan_gradient_range, f8(r2, f8, f8, f8, l1, s1, w2, i8, i8, f8)),
         (_jitvolume.face_volume_range, f8(r2, f8, f8, f8, s1, s1, s1, i8, i8)),
         (_jitvolume.winding_range, t.void(r2, r3, w1, i8, i8)),
         (

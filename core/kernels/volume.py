@@ -100,9 +100,10 @@ def build_fans(faces, n):
 
 
 @njit(**KERNEL)
-def fan_gradient_range(rows, cx, cy, cz, ptr, seq, grad, start, stop):
+def fan_gradient_range(rows, cx, cy, cz, ptr, seq, grad, start, stop, total):
     """``grad[:, o]`` for the vertices ``start..stop`` of the (3, m) ``rows`` (about the
-    centre ``c``); returns their ``sum_o (P_o - c) . grad_o``.
+    centre ``c``); returns ``total`` plus their ``sum_o (P_o - c) . grad_o`` (added in
+    vertex order, so ranges taken one after the other give one range's sum).
 
     A chain ``a_0, ..., a_e`` of vertex o adds ``sum_i a_i x a_(i+1)``, computed as
     ``sum_i d_i x d_(i+1) + (o - c) x (a_e - a_0)`` with ``d_i = a_i - o``: the same
@@ -115,7 +116,6 @@ def fan_gradient_range(rows, cx, cy, cz, ptr, seq, grad, start, stop):
     """
     x, y, z = rows[0], rows[1], rows[2]
     gx, gy, gz = grad[0], grad[1], grad[2]
-    total = 0.0
     for o in range(start, stop):
         a, b = ptr[o], ptr[o + 1]
         px, py, pz = x[o], y[o], z[o]
