@@ -91,12 +91,14 @@ def plan(ptr: np.ndarray, seq: np.ndarray, chunk: int, window: int | None = None
 def _window(beyond: np.ndarray, ranges: int, chunk: int) -> int:
     """The window (a multiple of 256 up to ``chunk``) that costs least: each range applies
     ``2 window`` points more, and every fan entry ``beyond`` it (how far its neighbour lies
-    past its range) a far point, which costs about as much (a gather and an apply). A
-    torus's seam or a model numbered without locality then goes far instead of widening
-    every range."""
-    need = np.sort(beyond)
-    candidates = np.arange(0, chunk + 1, 256)
-    far = len(need) - np.searchsorted(need, candidates, side="right")
+    past what its step has applied) a far point, which costs about as much (a gather and
+    an apply). A torus's seam or a model numbered without locality then goes far instead
+    of widening every range."""
+    steps = chunk // 256
+    # entries by the least window that holds them, in 256s: far(w) = those above w / 256
+    need = np.bincount(np.minimum(-(-beyond // 256), steps + 1), minlength=steps + 2)
+    far = need[::-1].cumsum()[::-1][1 : steps + 2]  # far[k]: entries needing more than 256 k
+    candidates = 256 * np.arange(steps + 1)
     return int(candidates[np.argmin(2 * ranges * candidates + far)])
 
 
