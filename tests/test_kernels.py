@@ -111,6 +111,24 @@ def _meshes():
     }
 
 
+@pytest.mark.parametrize("shape", [(3, 3, 3), (4, 3, 4), (3, 4, 5), (2, 3, 6)])
+def test_determinants_match_the_jacobian_for_every_layer_count(compiled, shape):
+    """det J and |J|_F^2 of the compiled fold check (one loop nest per innermost layer
+    count up to 5, a loop a layer above) against the lattice's own Jacobian."""
+    rng = np.random.default_rng(sum(shape))
+    lat = skewed_lattice(shape)
+    uvw = np.concatenate([rng.uniform(size=(2900, 3)), rng.uniform(-0.2, 1.2, (100, 3))])
+    points = lat.origin + uvw @ lat.axes
+    nodes = lat.rest_nodes + rng.normal(scale=0.2, size=(lat.n_nodes, 3))
+    jac = lat.jacobian(points, nodes)
+    grid = nodes.reshape(*shape, 3)
+    det, norms = kernels.determinants(
+        np.ascontiguousarray(uvw.T), grid, np.linalg.inv(lat.axes).T, frobenius=True
+    )
+    assert close(det, np.linalg.det(jac), 1e-10)
+    assert close(norms, np.einsum("pij,pij->p", jac, jac), 1e-12)
+
+
 @pytest.mark.parametrize("name", list(_meshes()))
 def test_volume_and_gradient_match_numpy_on_any_triangle_set(compiled, name):
     v, f = _meshes()[name]
