@@ -407,6 +407,7 @@ def evaluation(plan, uvw: np.ndarray, nodes: np.ndarray, shape, center, k=None):
         start, stop = ranges[i]
         part[i] = k.evaluation_range(
             uvw, x, l, m, n, c[0], c[1], c[2], plan.ptr, plan.seq, plan.far, plan.far_ptr,
+            plan.six, plan.regular, plan.regular_ptr, plan.other, plan.other_ptr,
             i, start, stop, plan.window, plan.width, points, grad, far_uvw, acc[i],
         )  # fmt: skip
 

@@ -22,13 +22,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .base import KERNEL, njit
+from .base import INLINE, KERNEL, njit
 from .basis import _apply_rows, _transpose_rows
 from .volume import _fan_gradient
 
 #: vertices a step within a range (a multiple of the basis's block: the transpose sums
 #: block by block from the range's start either way, so the sums are the same)
 STEP = 2048
+#: the regular vertex's fan written out, inlined (numba IR) into the kernel
+_IN = {**INLINE, "inline": "always"}
 
 
 class Plan(NamedTuple):
@@ -43,6 +45,12 @@ class Plan(NamedTuple):
     window: int  #: vertices applied on either side of a range
     width: int  #: ``chunk + 2 window``: where the far points start in a range's buffer
     most_far: int  #: the most far points of one range
+    six: np.ndarray  #: int32 (6, regular): the six entries a regular vertex's fan starts
+    #: with (its closed chain without the last, which is the first again), one column each
+    regular: np.ndarray  #: int32, the regular vertices (one closed chain of six faces)
+    regular_ptr: np.ndarray  #: (steps + 1,) int64: step s's regular vertices
+    other: np.ndarray  #: int32, the other vertices
+    other_ptr: np.ndarray  #: (steps + 1,) int64: step s's other vertices
 
 
 def plan(ptr: np.ndarray, seq: np.ndarray, chunk: int, window: int | None = None) -> Plan:
@@ -76,6 +84,20 @@ def plan(ptr: np.ndarray, seq: np.ndarray, chunk: int, window: int | None = None
     if n + 1 >= 2**31 or width + len(far) >= 2**31:
         raise ValueError("too many vertices for int32 fans")
     most = int(np.diff(far_ptr).max()) if ranges else 0
+    # regular vertices: seven entries, one chain start, the last the first again
+    count = np.diff(ptr)
+    seven = np.flatnonzero(count == 7)
+    at = ptr[seven][:, None] + np.arange(7)
+    entries = local.astype(np.int32)[at] if len(seven) else np.zeros((0, 7), np.int32)
+    first = -entries[:, 0] - 1
+    one_chain = (entries[:, 1:] >= 0).all(axis=1) & (entries[:, 6] == first)
+    regular = seven[one_chain]
+    six = np.ascontiguousarray(entries[one_chain, :6].T)
+    six[0] = first[one_chain]
+    other = np.setdiff1d(np.arange(n), regular, assume_unique=True)
+    bounds = np.arange(0, -(-n // STEP) + 1) * STEP
+    regular_ptr = np.searchsorted(regular, bounds).astype(np.int64)
+    other_ptr = np.searchsorted(other, bounds).astype(np.int64)
     return Plan(
         np.ascontiguousarray(ptr, dtype=np.int64),
         local.astype(np.int32),
@@ -85,6 +107,11 @@ def plan(ptr: np.ndarray, seq: np.ndarray, chunk: int, window: int | None = None
         int(window),
         width,
         most,
+        six.astype(np.int32),
+        regular.astype(np.int32),
+        regular_ptr,
+        other.astype(np.int32),
+        other_ptr,
     )
 
 
@@ -102,10 +129,42 @@ def _window(beyond: np.ndarray, ranges: int, chunk: int) -> int:
     return int(candidates[np.argmin(2 * ranges * candidates + far)])
 
 
+@njit(**_IN)
+def _six(points, six, k, o, grad):
+    """``grad[:, o]`` of a regular vertex (column k of ``six``): the fans' kernel's
+    arithmetic for one closed chain of six faces (its three pairs), written out."""
+    x, y, z = points[0], points[1], points[2]
+    px, py, pz = x[o], y[o], z[o]
+    i0, i1, i2 = six[0, k], six[1, k], six[2, k]
+    i3, i4, i5 = six[3, k], six[4, k], six[5, k]
+    fx, fy, fz = x[i0], y[i0], z[i0]
+    sx, sy, sz = 0.0, 0.0, 0.0
+    hx, hy, hz = x[i1] - px, y[i1] - py, z[i1] - pz
+    ex, ey, ez = x[i2], y[i2], z[i2]
+    ux, uy, uz = ex - fx, ey - fy, ez - fz
+    sx += hy * uz - hz * uy
+    sy += hz * ux - hx * uz
+    sz += hx * uy - hy * ux
+    hx, hy, hz = x[i3] - px, y[i3] - py, z[i3] - pz
+    nx, ny, nz = x[i4], y[i4], z[i4]
+    ux, uy, uz = nx - ex, ny - ey, nz - ez
+    sx += hy * uz - hz * uy
+    sy += hz * ux - hx * uz
+    sz += hx * uy - hy * ux
+    hx, hy, hz = x[i5] - px, y[i5] - py, z[i5] - pz
+    ux, uy, uz = fx - nx, fy - ny, fz - nz
+    sx += hy * uz - hz * uy
+    sy += hz * ux - hx * uz
+    sz += hx * uy - hy * ux
+    grad[0, o] = sx / 6.0
+    grad[1, o] = sy / 6.0
+    grad[2, o] = sz / 6.0
+
+
 @njit(**KERNEL)
 def evaluation_range(
-    uvw, x, l, m, n, cx, cy, cz, ptr, seq, far, far_ptr, r, start, stop, window, width,
-    points, grad, far_uvw, acc,
+    uvw, x, l, m, n, cx, cy, cz, ptr, seq, far, far_ptr, six, regular, regular_ptr, other,
+    other_ptr, r, start, stop, window, width, points, grad, far_uvw, acc,
 ):  # fmt: skip
     """Range r (vertices ``start..stop``) of the evaluation: adds its share of the node
     gradient to ``acc`` (as :func:`core.kernels.basis.transpose_range` does) and returns
@@ -143,7 +202,16 @@ def evaluation_range(
             _apply_rows(u, v, t, x, points[0, a:b], points[1, a:b], points[2, a:b])
             done = ahead
         a, b = s - lo, e - lo
-        total = _fan_gradient(points, cx, cy, cz, fan_ptr, seq, grad, a, b, total)
+        step = s // STEP
+        for k in range(regular_ptr[step], regular_ptr[step + 1]):
+            _six(points, six, k, regular[k] - lo, grad)
+        for k in range(other_ptr[step], other_ptr[step + 1]):
+            o = other[k] - lo
+            _fan_gradient(points, cx, cy, cz, fan_ptr, seq, grad, o, o + 1, 0.0)
+        x0, x1, x2 = points[0], points[1], points[2]
+        g0, g1, g2 = grad[0], grad[1], grad[2]
+        for o in range(a, b):  # the volume's sum in vertex order, as the fans' kernel adds it
+            total += (x0[o] - cx) * g0[o] + (x1[o] - cy) * g1[o] + (x2[o] - cz) * g2[o]
         u, v, t = uvw[0, s:e], uvw[1, s:e], uvw[2, s:e]
         _transpose_rows(u, v, t, grad[0, a:b], grad[1, a:b], grad[2, a:b], l, m, n, acc)
     return total
