@@ -311,9 +311,10 @@ def _evaluation_row(repeats: int) -> Row:
         f"floor's. What is left is arithmetic: the one pass on a torus that fits the "
         f"core's cache takes {cached:.1f} ms of CPU scaled to this size "
         f"({cached / (1e3 * floor):.1f}x the floor on one thread, "
-        f"{cached / (1e3 * floor) / threads:.1f}x on {threads} idle cores); most of it the "
-        "fans' cross products (three a vertex, scalar: about 8 ns a vertex), the basis "
-        "3 ns a point each way"
+        f"{cached / (1e3 * floor) / threads:.1f}x on {threads} idle cores): the basis "
+        "about 3 ns a point each way (some 120 multiply-adds), the fans' three cross "
+        "products about 4.5 ns a regular vertex; load average "
+        f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs at the end"
     )
     what = f"volume + gradient, {mesh.n_faces} triangles, 27 nodes, against the read floor"
     return Row(what, t_one, "<= 3x the floor", ratio <= 3.0, why)

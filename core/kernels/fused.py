@@ -13,7 +13,10 @@ seam of a torus, a model numbered without locality) is one of the range's *far* 
 applied first. The fans are renumbered for that once (a :class:`Plan`), so the kernel
 walks them as :func:`core.kernels.volume.fan_gradient_range` does, with the same
 arithmetic and the same order of every sum: the numbers are the three passes', bit for
-bit.
+bit. A regular vertex (one closed chain of six faces: most of a triangle mesh's) is walked
+by straight-line code from a six-column table instead of the fans' loop (about half the
+time a vertex); the volume is then summed over the step in vertex order, as the fans'
+kernel sums it. The plan costs about 0.1 s and 32 bytes a triangle, once (1M triangles).
 """
 
 from __future__ import annotations
