@@ -394,7 +394,7 @@ def evaluation(plan, uvw: np.ndarray, nodes: np.ndarray, shape, center, k=None):
         return None
     l, m, n = shape
     p = uvw.shape[1]
-    if nodes.shape != (l * m * n, 3) or len(plan.ptr) != p + 1 or plan.chunk != CHUNK:
+    if nodes.shape != (l * m * n, 3) or plan.vertices != p or plan.chunk != CHUNK:
         return None
     x = np.ascontiguousarray(nodes, dtype=np.float64).reshape(l, m, 3 * n)
     c = np.zeros(3) if center is None else np.asarray(center, dtype=np.float64).reshape(3)
@@ -406,9 +406,10 @@ def evaluation(plan, uvw: np.ndarray, nodes: np.ndarray, shape, center, k=None):
         points, grad, far_uvw = _buffers(plan)
         start, stop = ranges[i]
         part[i] = k.evaluation_range(
-            uvw, x, l, m, n, c[0], c[1], c[2], plan.ptr, plan.seq, plan.far, plan.far_ptr,
-            plan.six, plan.regular, plan.regular_ptr, plan.other, plan.other_ptr,
-            i, start, stop, plan.window, plan.width, points, grad, far_uvw, acc[i],
+            uvw, x, l, m, n, c[0], c[1], c[2], plan.far, plan.far_ptr, plan.six,
+            plan.regular, plan.regular_ptr, plan.other, plan.other_ptr, plan.entries,
+            plan.starts, i, start, stop, plan.window, plan.width, points, grad, far_uvw,
+            acc[i],
         )  # fmt: skip
 
     _jitthreads.run(task, len(ranges))

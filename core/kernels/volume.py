@@ -27,6 +27,10 @@ from .winding import half_solid_angle
 #: the solid-angle term shared with the NumPy path, compiled into the winding kernel
 _half_solid_angle = njit(**INLINE)(half_solid_angle)
 
+#: the one vertex's walk, inlined (numba IR) into this kernel and the one-pass evaluation's
+#: (:mod:`core.kernels.fused`)
+_IN = {**INLINE, "inline": "always"}
+
 #: vertices of one fan above which its pairs are sorted with argsort (else insertion sort)
 _SMALL_FAN = 32
 
@@ -117,46 +121,8 @@ def fan_gradient_range(rows, cx, cy, cz, ptr, seq, grad, start, stop, total):
     x, y, z = rows[0], rows[1], rows[2]
     gx, gy, gz = grad[0], grad[1], grad[2]
     for o in range(start, stop):
-        a, b = ptr[o], ptr[o + 1]
         px, py, pz = x[o], y[o], z[o]
-        sx, sy, sz = 0.0, 0.0, 0.0
-        t = a
-        while t < b:  # every vertex's entries start with a chain
-            first = -seq[t] - 1
-            last = first
-            # e: the chain's entry of even place reached so far (not relative to o)
-            ex, ey, ez = x[first], y[first], z[first]
-            t += 1
-            while t < b:
-                r = seq[t]
-                if r < 0:  # the next chain starts
-                    break
-                t += 1
-                hx, hy, hz = x[r] - px, y[r] - py, z[r] - pz  # d of odd place
-                q = seq[t] if t < b else -1
-                if q >= 0:  # two terms: d_odd x (a_even' - a_even)
-                    t += 1
-                    nx, ny, nz = x[q], y[q], z[q]
-                    ux, uy, uz = nx - ex, ny - ey, nz - ez
-                    sx += hy * uz - hz * uy
-                    sy += hz * ux - hx * uz
-                    sz += hx * uy - hy * ux
-                    ex, ey, ez = nx, ny, nz
-                    last = q
-                else:  # the chain's last term alone: d_even x d_odd
-                    ax, ay, az = ex - px, ey - py, ez - pz
-                    sx += ay * hz - az * hy
-                    sy += az * hx - ax * hz
-                    sz += ax * hy - ay * hx
-                    ex, ey, ez = x[r], y[r], z[r]
-                    last = r
-                    break
-            if last != first:  # an open chain: (o - c) x (a_e - a_0)
-                dx, dy, dz = ex - x[first], ey - y[first], ez - z[first]
-                ox, oy, oz = px - cx, py - cy, pz - cz
-                sx += oy * dz - oz * dy
-                sy += oz * dx - ox * dz
-                sz += ox * dy - oy * dx
+        sx, sy, sz = _vertex(x, y, z, px, py, pz, cx, cy, cz, seq, ptr[o], ptr[o + 1])
         sx /= 6.0
         sy /= 6.0
         sz /= 6.0
@@ -165,6 +131,51 @@ def fan_gradient_range(rows, cx, cy, cz, ptr, seq, grad, start, stop, total):
         gz[o] = sz
         total += (px - cx) * sx + (py - cy) * sy + (pz - cz) * sz
     return total
+
+
+@njit(**_IN)
+def _vertex(x, y, z, px, py, pz, cx, cy, cz, seq, a, b):
+    """6 times the gradient at the vertex ``p`` whose chains are ``seq[a:b]`` (see
+    :func:`fan_gradient_range`), of the points ``x, y, z`` about the centre ``c``."""
+    sx, sy, sz = 0.0, 0.0, 0.0
+    t = a
+    while t < b:  # every vertex's entries start with a chain
+        first = -seq[t] - 1
+        last = first
+        # e: the chain's entry of even place reached so far (not relative to o)
+        ex, ey, ez = x[first], y[first], z[first]
+        t += 1
+        while t < b:
+            r = seq[t]
+            if r < 0:  # the next chain starts
+                break
+            t += 1
+            hx, hy, hz = x[r] - px, y[r] - py, z[r] - pz  # d of odd place
+            q = seq[t] if t < b else -1
+            if q >= 0:  # two terms: d_odd x (a_even' - a_even)
+                t += 1
+                nx, ny, nz = x[q], y[q], z[q]
+                ux, uy, uz = nx - ex, ny - ey, nz - ez
+                sx += hy * uz - hz * uy
+                sy += hz * ux - hx * uz
+                sz += hx * uy - hy * ux
+                ex, ey, ez = nx, ny, nz
+                last = q
+            else:  # the chain's last term alone: d_even x d_odd
+                ax, ay, az = ex - px, ey - py, ez - pz
+                sx += ay * hz - az * hy
+                sy += az * hx - ax * hz
+                sz += ax * hy - ay * hx
+                ex, ey, ez = x[r], y[r], z[r]
+                last = r
+                break
+        if last != first:  # an open chain: (o - c) x (a_e - a_0)
+            dx, dy, dz = ex - x[first], ey - y[first], ez - z[first]
+            ox, oy, oz = px - cx, py - cy, pz - cz
+            sx += oy * dz - oz * dy
+            sy += oz * dx - ox * dz
+            sz += ox * dy - oy * dx
+    return sx, sy, sz
 
 
 @njit(**REDUCE)
@@ -200,7 +211,3 @@ def winding_range(points, corners, out, start, stop):
                 c[0, f] - px, c[1, f] - py, c[2, f] - pz,
             )  # fmt: skip
         out[q] = total / (2.0 * np.pi)
-
-
-#: the fan gradient as a helper compiled into :func:`core.kernels.fused.evaluation_range`
-_fan_gradient = njit(**INLINE)(getattr(fan_gradient_range, "py_func", fan_gradient_range))
