@@ -362,13 +362,16 @@ _scratch = threading.local()
 
 
 def _buffers(plan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """This thread's scratch for :func:`evaluation` (kept: made once a thread and size)."""
-    need = (plan.width, max(plan.most_far, 1))
+    """This thread's scratch for :func:`evaluation`: kept, and grown to the largest plan
+    seen (a solve's levels and bodies take turns; the kernel reads only what its plan
+    needs), so a call does not allocate and fault in a megabyte."""
+    width, most = plan.width, max(plan.most_far, 1)
     held = getattr(_scratch, "buffers", None)
-    if held is None or held[0] != need:
-        width, most = need
+    if held is None or held[0][0] < width or held[0][1] < most:
+        if held is not None:
+            width, most = max(width, held[0][0]), max(most, held[0][1])
         arrays = (np.empty((3, width + most)), np.empty((3, width)), np.empty((3, most)))
-        held = _scratch.buffers = (need, arrays)
+        held = _scratch.buffers = ((width, most), arrays)
     return held[1]
 
 
