@@ -361,17 +361,19 @@ def volume_gradient(fan, rows: np.ndarray, center, k=None):
 _scratch = threading.local()
 
 
-def _buffers(plan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _buffers(plan) -> tuple[np.ndarray, np.ndarray]:
     """This thread's scratch for :func:`evaluation`: kept, and grown to the largest plan
     seen (a solve's levels and bodies take turns; the kernel reads only what its plan
     needs), so a call does not allocate and fault in a megabyte."""
-    width, most = plan.width, max(plan.most_far, 1)
+    width, most = plan.width, plan.most_far
     held = getattr(_scratch, "buffers", None)
     if held is None or held[0][0] < width or held[0][1] < most:
         if held is not None:
             width, most = max(width, held[0][0]), max(most, held[0][1])
-        arrays = (np.empty((3, width + most)), np.empty((3, width)), np.empty((3, most)))
-        held = _scratch.buffers = ((width, most), arrays)
+        held = _scratch.buffers = (
+            (width, most),
+            (np.empty((3, width + most)), np.empty((3, width))),
+        )
     return held[1]
 
 
@@ -404,14 +406,15 @@ def evaluation(plan, uvw: np.ndarray, nodes: np.ndarray, shape, center, k=None):
     ranges = _chunks(p)
     acc = np.zeros((len(ranges), l * m * n * 3))
     part = np.zeros(len(ranges))
+    far_uvw = np.ascontiguousarray(uvw[:, plan.far])
 
     def task(i):
-        points, grad, far_uvw = _buffers(plan)
+        points, grad = _buffers(plan)
         start, stop = ranges[i]
         part[i] = k.evaluation_range(
             uvw, x, l, m, n, c[0], c[1], c[2], plan.far, plan.far_ptr, plan.six,
             plan.regular, plan.regular_ptr, plan.other, plan.other_ptr, plan.entries,
-            plan.starts, i, start, stop, plan.window, plan.width, points, grad, far_uvw,
+            plan.starts, i, start, stop, plan.window, plan.width, far_uvw, points, grad,
             acc[i],
         )  # fmt: skip
 

@@ -173,27 +173,23 @@ def _six(points, six, k, o, grad):
 @njit(**KERNEL)
 def evaluation_range(
     uvw, x, l, m, n, cx, cy, cz, far, far_ptr, six, regular, regular_ptr, other, other_ptr,
-    entries, starts, r, start, stop, window, width, points, grad, far_uvw, acc,
+    entries, starts, r, start, stop, window, width, far_uvw, points, grad, acc,
 ):  # fmt: skip
     """Range r (vertices ``start..stop``) of the evaluation: adds its share of the node
     gradient to ``acc`` (as :func:`core.kernels.basis.transpose_range` does) and returns
     its ``sum_o (P_o - c) . grad_o``. Each helper keeps its own compile options (the
     apply's and the fans' sums in order, the transpose's reassociated), so the numbers are
-    the three passes'. ``points`` (3, width + most far), ``grad`` (3, width) and
-    ``far_uvw`` (3, most far) are scratch."""
+    the three passes'. ``far_uvw`` (3, far vertices): the lattice coordinates of ``far``
+    (gathered by the caller: read-only like ``uvw``, so the apply is compiled once);
+    ``points`` (3, width + most far) and ``grad`` (3, width) are scratch."""
     p = uvw.shape[1]
     lo, hi = max(start - window, 0), min(stop + window, p)
     f0, f1 = far_ptr[r], far_ptr[r + 1]
     nf = f1 - f0
     if nf > 0:
-        for q in range(nf):
-            i = far[f0 + q]
-            far_uvw[0, q] = uvw[0, i]
-            far_uvw[1, q] = uvw[1, i]
-            far_uvw[2, q] = uvw[2, i]
         e = width + nf
         _apply_rows(
-            far_uvw[0, :nf], far_uvw[1, :nf], far_uvw[2, :nf], x,
+            far_uvw[0, f0:f1], far_uvw[1, f0:f1], far_uvw[2, f0:f1], x,
             points[0, width:e], points[1, width:e], points[2, width:e],
         )  # fmt: skip
     # steps of STEP vertices: the points are applied just ahead of the fans that read

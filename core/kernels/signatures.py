@@ -61,7 +61,7 @@ def compile_all() -> SimpleNamespace:
                 i8,
                 i8,
                 i8,
-                w2,
+                r2,
                 w2,
                 w2,
                 w1,
