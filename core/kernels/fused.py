@@ -27,7 +27,7 @@ import numpy as np
 
 from .base import INLINE, KERNEL, njit
 from .basis import _apply_rows, _transpose_rows
-from .volume import _vertex
+from .volume import _vertex_called
 
 #: vertices a step within a range (a multiple of the basis's block: the transpose sums
 #: block by block from the range's start either way, so the sums are the same)
@@ -215,7 +215,7 @@ def evaluation_range(
             o = other[k] - lo
             px, py, pz = x0[o], x1[o], x2[o]
             a0, b0 = starts[k], starts[k + 1]
-            sx, sy, sz = _vertex(x0, x1, x2, px, py, pz, cx, cy, cz, entries, a0, b0)
+            sx, sy, sz = _vertex_called(x0, x1, x2, px, py, pz, cx, cy, cz, entries, a0, b0)
             g0[o] = sx / 6.0
             g1[o] = sy / 6.0
             g2[o] = sz / 6.0
