@@ -208,6 +208,7 @@ class VolumeOperator:
         self._faces_t = faces_t  # (3, f): the compiled volume's corners
         self._corners = tuple(faces_t)  # for the volume-only path (views of its rows)
         self._fans = None  # for the compiled path, made on its first use
+        self._plan = None  # the fans renumbered for node_gradient's one pass (first use)
         #: the edges and their scatter matrix (the gradient's), made on its first use: a
         #: level that is only measured (the full mesh of most solves) never needs them
         self._edge_data: _Edges | None = None
@@ -290,6 +291,33 @@ class VolumeOperator:
             self._fans = kernels.fans(self.faces, self.n_vertices)
         out = kernels.volume_gradient(self._fans, _coordinate_rows(vertices, None), center)
         return None if out is None else (out[0], out[1].T)
+
+    def node_gradient(
+        self, basis, nodes: np.ndarray, center: np.ndarray | None = None
+    ) -> tuple[float, np.ndarray]:
+        """Signed volume of the vertices ``basis.apply(nodes)`` and its gradient with
+        respect to the nodes, ``(l*m*n, 3)``: :meth:`value_and_gradient` then
+        ``basis.apply_transpose``. With the compiled kernels and a Bernstein
+        :class:`core.lattice.PointBasis` of these vertices, one pass over ranges of
+        vertices (:mod:`core.kernels.fused`: the same numbers, without writing the points
+        and the vertex gradient out and reading them back)."""
+        from .lattice import PointBasis
+
+        nodes = np.asarray(nodes, dtype=np.float64)
+        if (
+            type(basis) is PointBasis
+            and basis.n_points == self.n_vertices
+            and kernels.active(len(self.faces))
+        ):
+            if self._fans is None:
+                self._fans = kernels.fans(self.faces, self.n_vertices)
+            if self._plan is None and self._fans is not None:
+                self._plan = kernels.evaluation_plan(self._fans)
+            fast = kernels.evaluation(self._plan, basis.uvw, nodes, basis.shape, center)
+            if fast is not None:
+                return fast
+        volume, grad = self.value_and_gradient(basis.apply(nodes), center)
+        return volume, basis.apply_transpose(grad)
 
     def value_and_gradient(
         self, vertices: np.ndarray, center: np.ndarray | None = None

@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -39,9 +40,13 @@ def skewed_lattice(shape):
     return Lattice(shape, (0.5, -1.0, 2.0), axes)
 
 
-@pytest.mark.parametrize(
-    "shape", [(2, 2, 2), (3, 3, 3), (3, 4, 5), (5, 5, 5), (8, 8, 8), (10, 2, 7), (4, 9, 3)]
-)
+#: every count of innermost layers the kernels treat apart: 2 to 5 at once, 6 to 10 in groups
+#: of 2 or 3 (6 and 9: groups of 3 only; 7, 8, 10: both)
+SHAPES = [(2, 2, 2), (3, 3, 3), (4, 3, 4), (3, 4, 5), (5, 5, 5), (2, 3, 6), (10, 2, 7)]
+SHAPES += [(8, 8, 8), (3, 2, 9), (2, 2, 10), (4, 9, 3)]
+
+
+@pytest.mark.parametrize("shape", SHAPES)
 def test_basis_matches_the_dense_and_factored_numpy_forms(compiled, shape, monkeypatch):
     rng = np.random.default_rng(sum(shape))
     lat = skewed_lattice(shape)
@@ -106,6 +111,24 @@ def _meshes():
     }
 
 
+@pytest.mark.parametrize("shape", [(3, 3, 3), (4, 3, 4), (3, 4, 5), (2, 3, 6)])
+def test_determinants_match_the_jacobian_for_every_layer_count(compiled, shape):
+    """det J and |J|_F^2 of the compiled fold check (one loop nest per innermost layer
+    count up to 5, a loop a layer above) against the lattice's own Jacobian."""
+    rng = np.random.default_rng(sum(shape))
+    lat = skewed_lattice(shape)
+    uvw = np.concatenate([rng.uniform(size=(2900, 3)), rng.uniform(-0.2, 1.2, (100, 3))])
+    points = lat.origin + uvw @ lat.axes
+    nodes = lat.rest_nodes + rng.normal(scale=0.2, size=(lat.n_nodes, 3))
+    jac = lat.jacobian(points, nodes)
+    grid = nodes.reshape(*shape, 3)
+    det, norms = kernels.determinants(
+        np.ascontiguousarray(uvw.T), grid, np.linalg.inv(lat.axes).T, frobenius=True
+    )
+    assert close(det, np.linalg.det(jac), 1e-10)
+    assert close(norms, np.einsum("pij,pij->p", jac, jac), 1e-12)
+
+
 @pytest.mark.parametrize("name", list(_meshes()))
 def test_volume_and_gradient_match_numpy_on_any_triangle_set(compiled, name):
     v, f = _meshes()[name]
@@ -127,6 +150,50 @@ def test_volume_and_gradient_match_numpy_on_any_triangle_set(compiled, name):
     for i, w in enumerate((np.cross(b, c), np.cross(c, a), np.cross(a, b))):
         np.add.at(corner, f[:, i], w / 6.0)
     assert close(grad, corner, 1e-11)
+
+
+@pytest.mark.parametrize("name", list(_meshes()))
+def test_the_one_pass_evaluation_gives_the_three_passes_numbers(compiled, name):
+    """VolumeOperator.node_gradient (the basis, the fans and the transpose range by range)
+    against basis.apply, value_and_gradient and apply_transpose: bit for bit on the
+    compiled path, and the same call on the NumPy path within rounding."""
+    v, f = _meshes()[name]
+    lat = Lattice.around(v, (3, 4, 3))
+    basis = lat.point_basis(v)
+    op = VolumeOperator(f, len(v))
+    nodes = lat.rest_nodes + np.random.default_rng(4).normal(scale=0.05, size=(lat.n_nodes, 3))
+    center = v.mean(axis=0) + 0.01
+    value, grad = op.node_gradient(basis, nodes, center)
+    v0, g0 = op.value_and_gradient(basis.apply(nodes), center)
+    assert value == v0 and np.array_equal(grad, basis.apply_transpose(g0))
+    with kernels.numpy_path():
+        v1, g1 = op.node_gradient(basis, nodes, center)
+    assert abs(value - v1) <= 1e-12 * max(abs(v1), 1e-3) and close(grad, g1)
+
+
+def test_the_one_pass_evaluation_across_ranges_and_a_seam(compiled):
+    """A torus of four ranges of vertices: each range applies the basis to a window about
+    itself step by step, a fan may reach 399 vertices ahead (the seam's diagonals: past
+    the window of the step before), and the seam's neighbours (a whole torus away) are
+    far points; the same numbers as the three passes, on one thread or three, for one set
+    of nodes after another (no point left over from the last call)."""
+    mesh = torus(300, 200)
+    assert mesh.n_vertices > 3 * kernels.CHUNK
+    lat = skewed_lattice((4, 3, 5))
+    basis = lat.point_basis(mesh.vertices)
+    op = VolumeOperator(mesh.faces, mesh.n_vertices)
+    rng = np.random.default_rng(5)
+    for threads in (1, 3, 3):
+        nodes = lat.rest_nodes + rng.normal(scale=0.1, size=(lat.n_nodes, 3))
+        v0, g0 = op.value_and_gradient(basis.apply(nodes), mesh.center)
+        previous = kernels.set_threads(threads)
+        try:
+            value, grad = op.node_gradient(basis, nodes, mesh.center)
+        finally:
+            kernels.set_threads(previous)
+        assert value == v0 and np.array_equal(grad, basis.apply_transpose(g0))
+    plan = kernels.evaluation_plan(kernels.fans(mesh.faces, mesh.n_vertices))
+    assert 0 < plan.window < 399 and len(plan.far) > 0  # the seam went far
 
 
 def test_results_do_not_depend_on_the_thread_count(compiled):
@@ -176,6 +243,7 @@ def test_a_failing_compiled_call_falls_back_to_numpy(compiled, monkeypatch):
         build_fans=broken,
         fan_gradient_range=broken,
         face_volume_range=broken,
+        evaluation_range=broken,
     )
     mesh = sphere_levels(3)[-1]
     lat = Lattice.around(mesh.vertices, (3, 3, 3))
@@ -186,6 +254,13 @@ def test_a_failing_compiled_call_falls_back_to_numpy(compiled, monkeypatch):
     assert kernels.status() == "failed: apply: RuntimeError: boom"
     assert close(pts, mesh.vertices, 1e-12)  # the NumPy path's answer
     assert kernels.ready(0) is False
+    for name, value in (("kernels", fake), ("status", "ready"), ("reason", "")):
+        monkeypatch.setattr(kernels._state, name, value)
+    op = VolumeOperator(mesh.faces, mesh.n_vertices)
+    value, grad = op.node_gradient(basis, lat.rest_nodes)
+    assert kernels.status().startswith("failed: ")
+    assert abs(value - signed_volume(mesh.vertices, mesh.faces)) <= 1e-12 * abs(value)
+    assert grad.shape == (lat.n_nodes, 3)
 
 
 def _child(code: str, **env) -> str:
@@ -276,6 +351,33 @@ def test_numba_caches_in_a_user_folder(tmp_path):
     folder = _child(code, **env).strip()
     assert folder.startswith(str(tmp_path / "isochor" / "numba")), folder
     assert _child(code, NUMBA_CACHE_DIR=str(tmp_path / "mine")).strip() == str(tmp_path / "mine")
+
+
+def test_the_cache_key_covers_every_kernel_source(tmp_path):
+    """numba checks only the time stamp of the file that defines a kernel, so the cache
+    folder is named by a hash of the kernel sources: each listed source exists, every
+    module that compiles a function is listed, and editing one changes the key."""
+    import shutil
+
+    from isochor.core.kernels import base
+
+    folder = Path(base.__file__).resolve().parent
+    missing = [name for name in base.SOURCES if not (folder / name).is_file()]
+    assert not missing, f"SOURCES names files that do not exist: {missing}"
+    compiling = {f.name for f in folder.glob("*.py") if "njit(" in f.read_text()}
+    assert compiling - {"base.py"} and compiling <= set(base.SOURCES), compiling
+    for name in base.SOURCES:
+        shutil.copy(folder / name, tmp_path / name)
+    assert base.source_key(tmp_path) == base.source_key()
+    keys = {base.source_key()}
+    for name in base.SOURCES:
+        text = (tmp_path / name).read_text()
+        (tmp_path / name).write_text(text + "\n# edited\n")
+        keys.add(base.source_key(tmp_path))
+        (tmp_path / name).write_text(text)
+    assert len(keys) == len(base.SOURCES) + 1  # each edit makes a new folder
+    (tmp_path / base.SOURCES[0]).unlink()
+    assert base.source_key(tmp_path) not in keys
 
 
 def test_winding_numbers_match_numpy(compiled):

@@ -5,9 +5,10 @@ package's other modules:
 - :mod:`.step`       the solver step's entry points (springs, L-BFGS recursion and memory, a
   small preconditioner's inverse); :mod:`.pairs`, the L-BFGS memory on the NumPy path
 - :mod:`.basis`, :mod:`.bern`  the Bernstein basis products; :mod:`.local` the local
-  (Blender) bases' products and det J; :mod:`.volume` the volume and
-  its gradient; :mod:`.folds` det J; :mod:`.solver` the solver step; :mod:`.winding` the
-  solid-angle term both paths share
+  (Blender) bases' products and det J; :mod:`.volume` the volume and its gradient;
+  :mod:`.fused` the basis, the volume's gradient and the transpose in one pass;
+  :mod:`.folds` det J; :mod:`.solver` the solver step; :mod:`.winding` the solid-angle
+  term both paths share
 - :mod:`.base`       numba or stand-ins, the cache folder; :mod:`.signatures` the types each
   kernel is compiled for; :mod:`.check` their self-check; :mod:`.cache` the cache marker and
   the one compiling child at a time; :mod:`.threads` ranges of work on a few threads
@@ -20,6 +21,9 @@ What they compute (the same numbers as the NumPy path, to rounding; ``tests/test
   (:mod:`core.kernels.basis`);
 - :func:`fans`, :func:`volume_gradient`, :func:`face_volume`: the volume and its gradient
   of :class:`core.volume.VolumeOperator`, vertex by vertex (:mod:`core.kernels.volume`);
+- :func:`evaluation` (with :func:`evaluation_plan`):
+  :meth:`core.volume.VolumeOperator.node_gradient`, the basis applied, the volume's
+  gradient and its transpose in one pass over ranges of vertices (:mod:`core.kernels.fused`);
 - :func:`winding_numbers`: :func:`core.bodies.winding_numbers` (the fold guard's interior
   samples, on the first solve of a model);
 - :func:`determinants`: det J at many points, the fold check of every result
@@ -348,10 +352,75 @@ def volume_gradient(fan, rows: np.ndarray, center, k=None):
     part = np.zeros(len(ranges))
 
     def task(i):
-        part[i] = k.fan_gradient_range(rows, c[0], c[1], c[2], ptr, seq, grad, *ranges[i])
+        part[i] = k.fan_gradient_range(rows, c[0], c[1], c[2], ptr, seq, grad, *ranges[i], 0.0)
 
     _jitthreads.run(task, len(ranges))
     return float(part.sum()) / 3.0, grad
+
+
+_scratch = threading.local()
+
+
+def _buffers(plan) -> tuple[np.ndarray, np.ndarray]:
+    """This thread's scratch for :func:`evaluation`: kept, and grown to the largest plan
+    seen (a solve's levels and bodies take turns; the kernel reads only what its plan
+    needs), so a call does not allocate and fault in a megabyte."""
+    width, most = plan.width, plan.most_far
+    held = getattr(_scratch, "buffers", None)
+    if held is None or held[0][0] < width or held[0][1] < most:
+        if held is not None:
+            width, most = max(width, held[0][0]), max(most, held[0][1])
+        held = _scratch.buffers = (
+            (width, most),
+            (np.empty((3, width + most)), np.empty((3, width))),
+        )
+    return held[1]
+
+
+def evaluation_plan(fan, k=None):
+    """The fans (ptr, seq) renumbered for :func:`evaluation` (:mod:`core.kernels.fused`);
+    None: no kernels or no fans."""
+    k = k or _kernels()
+    if k is None or fan is None:
+        return None
+    from .fused import plan
+
+    return plan(*fan, CHUNK)
+
+
+@_guard
+def evaluation(plan, uvw: np.ndarray, nodes: np.ndarray, shape, center, k=None):
+    """(volume, (l m n, 3) node gradient) of the faces whose fans ``plan`` renumbers, at
+    the points the (3, p) lattice coordinates ``uvw`` take for the (l m n, 3) nodes:
+    :func:`apply`, :func:`volume_gradient` and :func:`apply_transpose` in one pass, the
+    same numbers (:mod:`core.kernels.fused`); None: no kernels."""
+    k = k or _kernels(uvw.shape[1])
+    if k is None or plan is None:
+        return None
+    l, m, n = shape
+    p = uvw.shape[1]
+    if nodes.shape != (l * m * n, 3) or plan.vertices != p or plan.chunk != CHUNK:
+        return None
+    x = np.ascontiguousarray(nodes, dtype=np.float64).reshape(l, m, 3 * n)
+    c = np.zeros(3) if center is None else np.asarray(center, dtype=np.float64).reshape(3)
+    ranges = _chunks(p)
+    acc = np.zeros((len(ranges), l * m * n * 3))
+    part = np.zeros(len(ranges))
+    far_uvw = np.ascontiguousarray(uvw[:, plan.far])
+
+    def task(i):
+        points, grad = _buffers(plan)
+        start, stop = ranges[i]
+        part[i] = k.evaluation_range(
+            uvw, x, l, m, n, c[0], c[1], c[2], plan.far, plan.far_ptr, plan.six,
+            plan.regular, plan.regular_ptr, plan.other, plan.other_ptr, plan.entries,
+            plan.starts, i, start, stop, plan.window, plan.width, far_uvw, points, grad,
+            acc[i],
+        )  # fmt: skip
+
+    _jitthreads.run(task, len(ranges))
+    gradient = acc.sum(axis=0) if len(ranges) > 1 else acc[0]
+    return float(part.sum()) / 3.0, gradient.reshape(-1, 3)
 
 
 @_guard

@@ -20,34 +20,43 @@ import hashlib
 import os
 from pathlib import Path
 
-#: the modules whose source decides the cache folder
+#: the modules whose source decides the cache folder: every module that defines a compiled
+#: function or a helper compiled into one (``winding``), the options they are compiled with
+#: (this module) and the types they are compiled for (``signatures``). A module missing
+#: here would let numba load stale machine code after it changed (tests/test_kernels.py
+#: checks that each one exists and that every module calling ``njit`` is listed).
 SOURCES = (
-    "_jitbase.py",
-    "_jitbern.py",
-    "_jitbasis.py",
-    "_jitvolume.py",
-    "_jitfolds.py",
-    "_jitsolver.py",
-    "_jitcompile.py",
-    "_winding.py",
+    "base.py",
+    "basis.py",
+    "bern.py",
+    "folds.py",
+    "fused.py",
+    "local.py",
+    "signatures.py",
+    "solver.py",
+    "volume.py",
+    "winding.py",
 )
 
 
-def _source_key() -> str:
+def source_key(folder: Path | None = None) -> str:
+    """A hash of the :data:`SOURCES` in ``folder`` (by default this package's folder): the
+    name of the cache folder. A listed file that cannot be read counts by its name."""
     h = hashlib.sha1()
-    here = Path(__file__).resolve().parent
+    here = Path(__file__).resolve().parent if folder is None else Path(folder)
     for name in SOURCES:
+        h.update(name.encode())
         try:
             h.update((here / name).read_bytes())
         except OSError:
-            h.update(name.encode())
+            h.update(b"missing")
     return h.hexdigest()[:12]
 
 
 def cache_dir() -> Path:
     """The cache folder for these kernels (not created)."""
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "isochor" / "numba" / _source_key()
+    return Path(base) / "isochor" / "numba" / source_key()
 
 
 def _writable(folder: Path) -> bool:

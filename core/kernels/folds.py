@@ -37,6 +37,232 @@ def _pair(t, w, d, low, b, db):
             dbi[q] = d * dv
 
 
+#: the node-column helpers are inlined (numba IR), taking the rows they read: one loop over
+#: the block's points a column, its layers summed in registers (as in
+#: :mod:`core.kernels.basis`), instead of a loop a layer and coordinate through scratch
+_IN = {**INLINE, "inline": "always"}
+
+
+@njit(**_IN)
+def _column2(zv, zdv, zdw, b0, b1, e0, e1, bj, dbj, x, c, w):
+    """One node column (i, j) of 2 layers: ``y = sum_k x_k B_k``, ``yd = sum_k x_k
+    B'_k`` (k in order, as the layer-by-layer loop adds them), then ``zv += y B_j``,
+    ``zdv += y B'_j``, ``zdw += yd B_j``; x flat from ``c``."""
+    x00, x01, x02 = x[c + 0], x[c + 1], x[c + 2]
+    x10, x11, x12 = x[c + 3], x[c + 4], x[c + 5]
+    zv0, zv1, zv2 = zv[0], zv[1], zv[2]
+    zdv0, zdv1, zdv2 = zdv[0], zdv[1], zdv[2]
+    zdw0, zdw1, zdw2 = zdw[0], zdw[1], zdw[2]
+    for q in range(w):
+        u0, v0 = b0[q], e0[q]
+        u1, v1 = b1[q], e1[q]
+        y0 = 0.0
+        d0 = 0.0
+        y1 = 0.0
+        d1 = 0.0
+        y2 = 0.0
+        d2 = 0.0
+        y0 += x00 * u0
+        d0 += x00 * v0
+        y1 += x01 * u0
+        d1 += x01 * v0
+        y2 += x02 * u0
+        d2 += x02 * v0
+        y0 += x10 * u1
+        d0 += x10 * v1
+        y1 += x11 * u1
+        d1 += x11 * v1
+        y2 += x12 * u1
+        d2 += x12 * v1
+        bq, dq = bj[q], dbj[q]
+        zv0[q] += y0 * bq
+        zdv0[q] += y0 * dq
+        zdw0[q] += d0 * bq
+        zv1[q] += y1 * bq
+        zdv1[q] += y1 * dq
+        zdw1[q] += d1 * bq
+        zv2[q] += y2 * bq
+        zdv2[q] += y2 * dq
+        zdw2[q] += d2 * bq
+
+
+@njit(**_IN)
+def _column3(zv, zdv, zdw, b0, b1, b2, e0, e1, e2, bj, dbj, x, c, w):
+    """One node column (i, j) of 3 layers: ``y = sum_k x_k B_k``, ``yd = sum_k x_k
+    B'_k`` (k in order, as the layer-by-layer loop adds them), then ``zv += y B_j``,
+    ``zdv += y B'_j``, ``zdw += yd B_j``; x flat from ``c``."""
+    x00, x01, x02 = x[c + 0], x[c + 1], x[c + 2]
+    x10, x11, x12 = x[c + 3], x[c + 4], x[c + 5]
+    x20, x21, x22 = x[c + 6], x[c + 7], x[c + 8]
+    zv0, zv1, zv2 = zv[0], zv[1], zv[2]
+    zdv0, zdv1, zdv2 = zdv[0], zdv[1], zdv[2]
+    zdw0, zdw1, zdw2 = zdw[0], zdw[1], zdw[2]
+    for q in range(w):
+        u0, v0 = b0[q], e0[q]
+        u1, v1 = b1[q], e1[q]
+        u2, v2 = b2[q], e2[q]
+        y0 = 0.0
+        d0 = 0.0
+        y1 = 0.0
+        d1 = 0.0
+        y2 = 0.0
+        d2 = 0.0
+        y0 += x00 * u0
+        d0 += x00 * v0
+        y1 += x01 * u0
+        d1 += x01 * v0
+        y2 += x02 * u0
+        d2 += x02 * v0
+        y0 += x10 * u1
+        d0 += x10 * v1
+        y1 += x11 * u1
+        d1 += x11 * v1
+        y2 += x12 * u1
+        d2 += x12 * v1
+        y0 += x20 * u2
+        d0 += x20 * v2
+        y1 += x21 * u2
+        d1 += x21 * v2
+        y2 += x22 * u2
+        d2 += x22 * v2
+        bq, dq = bj[q], dbj[q]
+        zv0[q] += y0 * bq
+        zdv0[q] += y0 * dq
+        zdw0[q] += d0 * bq
+        zv1[q] += y1 * bq
+        zdv1[q] += y1 * dq
+        zdw1[q] += d1 * bq
+        zv2[q] += y2 * bq
+        zdv2[q] += y2 * dq
+        zdw2[q] += d2 * bq
+
+
+@njit(**_IN)
+def _column4(zv, zdv, zdw, b0, b1, b2, b3, e0, e1, e2, e3, bj, dbj, x, c, w):
+    """One node column (i, j) of 4 layers: ``y = sum_k x_k B_k``, ``yd = sum_k x_k
+    B'_k`` (k in order, as the layer-by-layer loop adds them), then ``zv += y B_j``,
+    ``zdv += y B'_j``, ``zdw += yd B_j``; x flat from ``c``."""
+    x00, x01, x02 = x[c + 0], x[c + 1], x[c + 2]
+    x10, x11, x12 = x[c + 3], x[c + 4], x[c + 5]
+    x20, x21, x22 = x[c + 6], x[c + 7], x[c + 8]
+    x30, x31, x32 = x[c + 9], x[c + 10], x[c + 11]
+    zv0, zv1, zv2 = zv[0], zv[1], zv[2]
+    zdv0, zdv1, zdv2 = zdv[0], zdv[1], zdv[2]
+    zdw0, zdw1, zdw2 = zdw[0], zdw[1], zdw[2]
+    for q in range(w):
+        u0, v0 = b0[q], e0[q]
+        u1, v1 = b1[q], e1[q]
+        u2, v2 = b2[q], e2[q]
+        u3, v3 = b3[q], e3[q]
+        y0 = 0.0
+        d0 = 0.0
+        y1 = 0.0
+        d1 = 0.0
+        y2 = 0.0
+        d2 = 0.0
+        y0 += x00 * u0
+        d0 += x00 * v0
+        y1 += x01 * u0
+        d1 += x01 * v0
+        y2 += x02 * u0
+        d2 += x02 * v0
+        y0 += x10 * u1
+        d0 += x10 * v1
+        y1 += x11 * u1
+        d1 += x11 * v1
+        y2 += x12 * u1
+        d2 += x12 * v1
+        y0 += x20 * u2
+        d0 += x20 * v2
+        y1 += x21 * u2
+        d1 += x21 * v2
+        y2 += x22 * u2
+        d2 += x22 * v2
+        y0 += x30 * u3
+        d0 += x30 * v3
+        y1 += x31 * u3
+        d1 += x31 * v3
+        y2 += x32 * u3
+        d2 += x32 * v3
+        bq, dq = bj[q], dbj[q]
+        zv0[q] += y0 * bq
+        zdv0[q] += y0 * dq
+        zdw0[q] += d0 * bq
+        zv1[q] += y1 * bq
+        zdv1[q] += y1 * dq
+        zdw1[q] += d1 * bq
+        zv2[q] += y2 * bq
+        zdv2[q] += y2 * dq
+        zdw2[q] += d2 * bq
+
+
+@njit(**_IN)
+def _column5(zv, zdv, zdw, b0, b1, b2, b3, b4, e0, e1, e2, e3, e4, bj, dbj, x, c, w):
+    """One node column (i, j) of 5 layers: ``y = sum_k x_k B_k``, ``yd = sum_k x_k
+    B'_k`` (k in order, as the layer-by-layer loop adds them), then ``zv += y B_j``,
+    ``zdv += y B'_j``, ``zdw += yd B_j``; x flat from ``c``."""
+    x00, x01, x02 = x[c + 0], x[c + 1], x[c + 2]
+    x10, x11, x12 = x[c + 3], x[c + 4], x[c + 5]
+    x20, x21, x22 = x[c + 6], x[c + 7], x[c + 8]
+    x30, x31, x32 = x[c + 9], x[c + 10], x[c + 11]
+    x40, x41, x42 = x[c + 12], x[c + 13], x[c + 14]
+    zv0, zv1, zv2 = zv[0], zv[1], zv[2]
+    zdv0, zdv1, zdv2 = zdv[0], zdv[1], zdv[2]
+    zdw0, zdw1, zdw2 = zdw[0], zdw[1], zdw[2]
+    for q in range(w):
+        u0, v0 = b0[q], e0[q]
+        u1, v1 = b1[q], e1[q]
+        u2, v2 = b2[q], e2[q]
+        u3, v3 = b3[q], e3[q]
+        u4, v4 = b4[q], e4[q]
+        y0 = 0.0
+        d0 = 0.0
+        y1 = 0.0
+        d1 = 0.0
+        y2 = 0.0
+        d2 = 0.0
+        y0 += x00 * u0
+        d0 += x00 * v0
+        y1 += x01 * u0
+        d1 += x01 * v0
+        y2 += x02 * u0
+        d2 += x02 * v0
+        y0 += x10 * u1
+        d0 += x10 * v1
+        y1 += x11 * u1
+        d1 += x11 * v1
+        y2 += x12 * u1
+        d2 += x12 * v1
+        y0 += x20 * u2
+        d0 += x20 * v2
+        y1 += x21 * u2
+        d1 += x21 * v2
+        y2 += x22 * u2
+        d2 += x22 * v2
+        y0 += x30 * u3
+        d0 += x30 * v3
+        y1 += x31 * u3
+        d1 += x31 * v3
+        y2 += x32 * u3
+        d2 += x32 * v3
+        y0 += x40 * u4
+        d0 += x40 * v4
+        y1 += x41 * u4
+        d1 += x41 * v4
+        y2 += x42 * u4
+        d2 += x42 * v4
+        bq, dq = bj[q], dbj[q]
+        zv0[q] += y0 * bq
+        zdv0[q] += y0 * dq
+        zdw0[q] += d0 * bq
+        zv1[q] += y1 * bq
+        zdv1[q] += y1 * dq
+        zdw1[q] += d1 * bq
+        zv2[q] += y2 * bq
+        zdv2[q] += y2 * dq
+        zdw2[q] += d2 * bq
+
+
 @njit(**KERNEL)
 def determinant_range(uvw, x, to_world, out, frobenius, start, stop):
     """``out[start:stop]``: det J at the points ``start..stop`` of the (3, p) lattice
@@ -45,6 +271,8 @@ def determinant_range(uvw, x, to_world, out, frobenius, start, stop):
     ``|J|_F^2`` there too (the fold guard's bound)."""
     squares = len(frobenius) > 0
     l, m, n = x.shape[0], x.shape[1], x.shape[2]
+    n3 = 3 * n
+    xf = x.reshape(l * m * n3)
     low = np.empty((10, BLOCK))
     bu, dbu = np.empty((l, BLOCK)), np.empty((l, BLOCK))
     bv, dbv = np.empty((m, BLOCK)), np.empty((m, BLOCK))
@@ -60,11 +288,36 @@ def determinant_range(uvw, x, to_world, out, frobenius, start, stop):
         du[:, :w] = 0.0
         dv[:, :w] = 0.0
         dw[:, :w] = 0.0
+        b0, b1, b2 = bw[0], bw[1], bw[min(2, n - 1)]
+        b3, b4 = bw[min(3, n - 1)], bw[min(4, n - 1)]
+        e0, e1, e2 = dbw[0], dbw[1], dbw[min(2, n - 1)]
+        e3, e4 = dbw[min(3, n - 1)], dbw[min(4, n - 1)]
         for i in range(l):
             zv[:, :w] = 0.0
             zdv[:, :w] = 0.0
             zdw[:, :w] = 0.0
-            for j in range(m):
+            at = i * m * n3
+            if n == 2:
+                for j in range(m):
+                    _column2(zv, zdv, zdw, b0, b1, e0, e1, bv[j], dbv[j], xf, at + j * n3, w)
+            elif n == 3:
+                for j in range(m):
+                    c = at + j * n3
+                    _column3(zv, zdv, zdw, b0, b1, b2, e0, e1, e2, bv[j], dbv[j], xf, c, w)
+            elif n == 4:
+                for j in range(m):
+                    c = at + j * n3
+                    _column4(
+                        zv, zdv, zdw, b0, b1, b2, b3, e0, e1, e2, e3, bv[j], dbv[j], xf, c, w
+                    )  # fmt: skip
+            elif n == 5:
+                for j in range(m):
+                    c = at + j * n3
+                    _column5(
+                        zv, zdv, zdw, b0, b1, b2, b3, b4, e0, e1, e2, e3, e4, bv[j], dbv[j],
+                        xf, c, w,
+                    )  # fmt: skip
+            for j in range(m if n > 5 else 0):
                 yw[:, :w] = 0.0
                 ydw[:, :w] = 0.0
                 for k in range(n):

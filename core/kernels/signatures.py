@@ -14,6 +14,7 @@ def compile_all() -> SimpleNamespace:
     """Compile the kernels for their argument types (or load them from numba's cache)."""
     from . import basis as _jitbasis
     from . import folds as _jitfolds
+    from . import fused as _jitfused
     from . import local as _jitlocal
     from . import solver as _jitsolver
     from . import volume as _jitvolume
@@ -32,9 +33,40 @@ def compile_all() -> SimpleNamespace:
         (_jitbasis.apply_range, t.void(r2, r3, w2, i8, i8)),
         (_jitbasis.transpose_range, t.void(r2, r2, i8, i8, i8, i8, i8, w1)),
         (_jitvolume.build_fans, t.Tuple((array(i8, 1, False), array(i4, 1, False)))(l2, i8)),
-        (_jitvolume.fan_gradient_range, f8(r2, f8, f8, f8, l1, s1, w2, i8, i8)),
+        (_jitvolume.fan_gradient_range, f8(r2, f8, f8, f8, l1, s1, w2, i8, i8, f8)),
         (_jitvolume.face_volume_range, f8(r2, f8, f8, f8, s1, s1, s1, i8, i8)),
         (_jitvolume.winding_range, t.void(r2, r3, w1, i8, i8)),
+        (
+            _jitfused.evaluation_range,
+            f8(
+                r2,
+                r3,
+                i8,
+                i8,
+                i8,
+                f8,
+                f8,
+                f8,
+                s1,
+                l1,
+                array(i4, 2),
+                s1,
+                l1,
+                s1,
+                l1,
+                s1,
+                l1,
+                i8,
+                i8,
+                i8,
+                i8,
+                i8,
+                r2,
+                w2,
+                w2,
+                w1,
+            ),  # fmt: skip
+        ),
         (_jitfolds.determinant_range, t.void(r2, r4, r2, w1, w1, i8, i8)),
         (_jitlocal.local_apply_range, t.void(r2, r2, l1, r4, w2, i8, i8)),
         (_jitlocal.local_transpose_range, t.void(r2, l1, r2, i8, i8, i8, i8, i8, w1)),
