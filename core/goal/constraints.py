@@ -162,9 +162,12 @@ class Level:
         return v
 
     def volume_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:
-        v, dv_dp = self.volume_op.value_and_gradient(self.local(nodes))
-        self._last = (np.asarray(nodes, dtype=np.float64).tobytes(), v)
-        return v, self.basis.apply_transpose(dv_dp)
+        """The volume and its gradient to the nodes (one compiled pass where it can:
+        :meth:`core.volume.VolumeOperator.node_gradient`, the same numbers)."""
+        nodes = np.asarray(nodes, dtype=np.float64)
+        v, dv = self.volume_op.node_gradient(self.basis, nodes - self.center)
+        self._last = (nodes.tobytes(), v)
+        return v, dv
 
     def parts(self, bodies: Bodies) -> tuple[list[_Part], np.ndarray]:
         """The level's shells and the body each belongs to (matched to the full mesh's
@@ -267,9 +270,9 @@ class Constraints:
             vols = np.zeros(self.bodies.count)
             dvols = np.zeros((self.bodies.count, *nodes.shape))
             for part, b in zip(parts, owner):
-                v, dp = part.op.value_and_gradient(part.basis.apply(nodes - lvl.center))
+                v, dp = part.op.node_gradient(part.basis, nodes - lvl.center)
                 vols[b] += v
-                dvols[b] += part.basis.apply_transpose(dp)
+                dvols[b] += dp
         else:
             v, dv = lvl.volume_and_gradient(nodes)
             vols, dvols = np.array([v]), dv[None]

@@ -80,10 +80,11 @@ WINDING_PAIRS = 1 << 20
 #: this many triangles, and then waits for them before solving (:func:`worth`). Measured
 #: (the benchmark's First use rows, a loaded machine): the 346k armadillo's cold command
 #: took 8.7 s waiting for numba against 7.5 s on NumPy; at 1.38M the compiled release
-#: solve is about 4x faster than NumPy's and loading numba hides behind reading the file
+#: solve is about 4x faster than NumPy's
 WORTH_TRIANGLES = 1_000_000
-#: ... and starts them before loading a model file of at least this many bytes (about
-#: ``WORTH_TRIANGLES`` triangles of binary PLY), so that they load while the file does
+#: ... and, for a model file of at least this many bytes (about ``WORTH_TRIANGLES``
+#: triangles of binary PLY), starts them once the model's pyramid is made and waits for
+#: them before the problem is built (:mod:`isochor.app.cli.opening`)
 WORTH_BYTES = 20 * WORTH_TRIANGLES
 
 #: threads per call (:mod:`core.kernels.threads`)
