@@ -26,6 +26,9 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 
+#: passes started again at most this often for one frame (then its paint renders it whole)
+MAX_RESTARTS = 3
+
 
 def _props(renderer) -> list:
     items = renderer.GetViewProps()
@@ -62,12 +65,14 @@ class Composer:
         self.restarts = 0  #: passes started again because the scene changed meanwhile
         self.shown = 0  #: composed frames shown (the others rendered as always)
         self._mine = False  # a render of ours is running
+        self._rendered = False  # the render window did render (not when it cannot: hidden)
         self._spoiled = False  # something else rendered since the last pass
         self._stamp: tuple | None = None
         self._drawn: list = []  # what the passes drew: hidden in the last paint
         window.AddObserver("StartEvent", self._started)
 
     def _started(self, *_args) -> None:
+        self._rendered = True
         if not self._mine:
             self._spoiled = True
             self.ready = False
@@ -90,10 +95,13 @@ class Composer:
         """The passes, one render a step (yields between them). Afterwards the caller makes
         ``held`` visible as the frame wants them and calls :meth:`arm`."""
         self.ready = False
-        while True:
+        self._drawn = []
+        for _ in range(MAX_RESTARTS + 1):
             drawn = yield from self._passes(list(pieces), list(held))
             if drawn is not None:
                 self._drawn = drawn
+                return
+            if not self._rendered:  # (a hidden view draws nothing: its next paint will)
                 return
             self.restarts += 1
 
@@ -102,25 +110,28 @@ class Composer:
         own = {id(a) for a in pieces + held}
         props = _props(self.renderer)
         opaque = [p for p in props if id(p) not in own and p.GetVisibility() and _opaque(p)]
-        self._render(props, opaque, erase=True)
+        if not self._render(props, opaque, erase=True):
+            return None
         for piece in pieces:
             yield
             if self._spoiled or self.stamp() != self._stamp:
                 return None
-            self._render(props, [piece], erase=False)
+            if not self._render(props, [piece], erase=False):
+                return None
         yield
         if self._spoiled or self.stamp() != self._stamp:
             return None
         return opaque + pieces + held
 
-    def _render(self, props: list, shown: list, erase: bool) -> None:
+    def _render(self, props: list, shown: list, erase: bool) -> bool:
         """One pass: only ``shown`` of the renderer's actors drawn, the other renderers (the
-        overlay layer) not at all, nothing shown on screen."""
+        overlay layer) not at all, nothing shown on screen. False when the window did not
+        render (a view not on screen)."""
         others = [r for r in _renderers(self.window) if r is not self.renderer]
         visible = [p.GetVisibility() for p in props]
         swap = self.window.GetSwapBuffers()
         keep = {id(p) for p in shown}
-        self._mine = True
+        self._mine, self._rendered = True, False
         try:
             for p in props:
                 p.SetVisibility(id(p) in keep)
@@ -140,11 +151,12 @@ class Composer:
                 p.SetVisibility(v)
             self._mine = False
         self._stamp = self.stamp()
+        return self._rendered
 
     def arm(self) -> None:
         """The passes are done and the model's actors show the frame: the next paint shows
         it (:meth:`showing`)."""
-        self.ready = not self._spoiled
+        self.ready = bool(self._drawn) and not self._spoiled
         self._stamp = self.stamp()
 
     @contextmanager

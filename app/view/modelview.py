@@ -103,6 +103,11 @@ class MeshView:
             self.pieces.append(actor)
         self._share()
 
+    def remove_pieces(self, plotter) -> None:
+        for actor in self.pieces:
+            plotter.renderer.RemoveActor(actor)
+        self.pieces = []
+
     def _share(self) -> None:
         """The pieces draw this mesh's point arrays (after they were replaced)."""
         for actor in self.pieces:
@@ -213,6 +218,9 @@ class ModelView:
         self._upgrade, self._points = None, None
         if prep is None or not prep.fits(surface, self.nodes):
             prep = DisplayPrep.of(surface, self.nodes)
+        self.composer.cancel()
+        if self.full is not None:  # (the plotter removes the named actors, not the pieces)
+            self.full.remove_pieces(self.plotter)
         self.full = MeshView(self.plotter, prep.full, "model", self.smooth, self.cull)
         self._full_nodes = self.nodes.copy()
         self.folded = 0
