@@ -23,6 +23,7 @@ a change to any actor or the camera between passes, starts the passes again.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 
@@ -64,6 +65,7 @@ class Composer:
         self.passes_drawn = 0  #: passes rendered (restarts included), for the tests
         self.restarts = 0  #: passes started again because the scene changed meanwhile
         self.shown = 0  #: composed frames shown (the others rendered as always)
+        self.pass_seconds: list[float] = []  #: how long each pass of the last frame took
         self._mine = False  # a render of ours is running
         self._rendered = False  # the render window did render (not when it cannot: hidden)
         self._spoiled = False  # something else rendered since the last pass
@@ -96,6 +98,7 @@ class Composer:
         ``held`` visible as the frame wants them and calls :meth:`arm`."""
         self.ready = False
         self._drawn = []
+        self.pass_seconds = []
         for _ in range(MAX_RESTARTS + 1):
             drawn = yield from self._passes(list(pieces), list(held))
             if drawn is not None:
@@ -131,6 +134,7 @@ class Composer:
         visible = [p.GetVisibility() for p in props]
         swap = self.window.GetSwapBuffers()
         keep = {id(p) for p in shown}
+        t0 = time.perf_counter()
         self._mine, self._rendered = True, False
         try:
             for p in props:
@@ -151,6 +155,7 @@ class Composer:
                 p.SetVisibility(v)
             self._mine = False
         self._stamp = self.stamp()
+        self.pass_seconds.append(time.perf_counter() - t0)
         return self._rendered
 
     def arm(self) -> None:
