@@ -474,3 +474,35 @@ def _measure(path: Path, repeats: int) -> list[dict]:
         win.undo_stack.setClean()
         win.close()
         win.shutdown()
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``xvfb-run python -m benchmarks.window [repeats]``: the drags alone (no closing or
+    opening rows, nothing written), each run's figures and the full-resolution row."""
+    import sys
+
+    from benchmarks.run import DEFAULT_MODELS
+    from isochor.app.view.modeldraw import IDLE_MS
+
+    args = sys.argv[1:] if argv is None else argv
+    repeats = int(args[0]) if args else 3
+    models = Path(os.environ.get("ISOCHOR_MODELS", DEFAULT_MODELS))
+    runs = _measure(models / ARMADILLO, repeats)
+    for r in runs:
+        print(
+            f"{'culled' if r['cull'] else 'unculled'}: {r['rate']:.1f} redraws/s, "
+            f"full resolution {1e3 * r['final']:.1f} ms (passes {r['passes']}, the longest "
+            f"{1e3 * r['longest_pass']:.1f} ms), the result's frame {1e3 * r['result_gap']:.1f} "
+            f"ms, stall {1e3 * r['stall']:.1f} ms"
+        )
+    culled = [r for r in runs if r["cull"]] or runs
+    final = float(np.median([r["final"] for r in culled]))
+    frame = 1 / float(np.median([r["rate"] for r in culled]))
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"{WHAT_FINAL}: {1e3 * final:.1f} ms against one proxy frame {1e3 * frame:.1f} ms")
+    print(_final_reason(culled, IDLE_MS, final, frame) + f" (load {load:.1f})")
+    os._exit(0)  # (as the editor: no finalisation of the window's VTK objects)
+
+
+if __name__ == "__main__":
+    main()

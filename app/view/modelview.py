@@ -11,7 +11,9 @@ drawn as a *proxy*: the finest level of its pyramid with at most that many trian
 deformed by the same nodes, with the same colour and shading. When nothing moves any more
 the full mesh is drawn again: it is deformed and shaded in steps of :data:`STEP_FACES`
 triangles, one step per event-loop turn (:meth:`ModelView.step`, driven by the view), with
-the proxy on screen meanwhile, and then shown in place of the proxy.
+the proxy on screen meanwhile, and then drawn in passes of as many triangles, one per turn
+too (:attr:`MeshView.pieces`, :class:`~isochor.app.view.composer.Composer`), and shown in
+place of the proxy.
 
 The volume comes with the normals (the same cross products): the proxy's, scaled by the
 full mesh's rest volume over the proxy's, is an *estimate* (:attr:`ModelView.estimated`);
