@@ -250,7 +250,8 @@ class ModelView:
     # -- frames ------------------------------------------------------------------------------
     def draw(self, nodes: np.ndarray, moving: bool) -> None:
         """Draw the model at ``nodes``: the proxy while ``moving`` (a big model), else the
-        full mesh (a big model's in steps: :meth:`step`, the proxy on screen meanwhile)."""
+        full mesh (a big model's in steps and passes: :meth:`step`, the proxy on screen
+        meanwhile)."""
         nodes = np.array(nodes, dtype=np.float64)
         self.nodes = nodes
         self.composer.cancel()
@@ -260,14 +261,17 @@ class ModelView:
             if not fresh and (self.proxy is None or self.full.n_faces <= AT_ONCE_FACES):
                 self.full.draw_at(self._surface.deform(nodes), self.smooth)
                 self._full_nodes, self._points, fresh = nodes.copy(), None, True
-            if fresh:
+            # (a big model's full mesh placed already but not on screen, after a press or
+            # during its passes, comes back in passes too: :meth:`_back`)
+            at_once = self.proxy is None or self.full.n_faces <= AT_ONCE_FACES
+            if fresh and (at_once or self.full.actor.GetVisibility()):
                 self._show(full=True)
                 self.volume, self.estimated = self.full.volume, False
                 return
         self.proxy.draw_at(self._surface.deform(nodes, level=self.proxy_k), self.smooth)
         self.volume, self.estimated = self.proxy.volume * self._scale, True
         self._show(full=False)
-        self._upgrade = None if moving else self._steps(nodes)
+        self._upgrade = None if moving else self._back(nodes)
 
     def lower(self) -> None:
         """Draw the proxy at the nodes drawn now, and the full mesh again through

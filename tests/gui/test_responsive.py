@@ -333,6 +333,39 @@ def test_a_press_while_the_full_mesh_is_drawn_in_passes_cancels_them(qtbot, big_
     assert composer.shown == shown + 1, "the full mesh drawn in passes once, after the pause"
 
 
+def test_a_click_on_a_node_of_a_big_model_brings_the_full_mesh_back_in_passes(
+    qtbot, big_torus, monkeypatch
+):
+    """A press on a node draws the proxy (a drag may follow); its release without a drag
+    does not render the full mesh whole at once: it comes back after the pause, drawn in
+    passes, at the same nodes (nothing deformed or shaded again)."""
+    from PySide6.QtCore import Qt
+    from PySide6.QtTest import QTest
+
+    from isochor.app.view import modelview
+    from tests.gui.test_editor import pickable_node, point, screen_positions
+
+    monkeypatch.setattr(modelview, "AT_ONCE_FACES", 0)  # (the torus as if it were bigger)
+    win = big_torus
+    vp = win.viewport
+    frames, composer = vp.model_frames, vp.scene.model.composer
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    row = pickable_node(win, want_free=True)
+    at = point(screen_positions(win)[0][row])
+    left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
+    shown, volume = composer.shown, vp.model_volume
+    QTest.mousePress(vp, left, none, at)
+    assert frames.drawn_model().startswith("proxy"), "a drag may follow: the proxy"
+    QTest.mouseRelease(vp, left, none, at)
+    assert frames.drawn_model().startswith("proxy"), "not the full mesh whole at once"
+    assert not frames.showing_full()
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    assert frames.drawn_model().startswith("full mesh")
+    assert composer.shown == shown + 1, "drawn in passes"
+    assert vp.model_volume == volume and not vp.scene.volume_estimated
+    assert list(win.doc.selection.rows) == [row], "the click selected the node"
+
+
 QUIT_CHILD = r"""
 import sys
 from PySide6.QtCore import QTimer
