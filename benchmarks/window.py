@@ -14,11 +14,11 @@ What it measures, each a median of the repeats:
 * the longest GUI-thread stall: a precise timer ticks every :data:`TICK_MS` ms on the GUI
   thread and the largest gap between two ticks is the longest time the GUI thread did not
   answer, from the press to the release solve's result (drawn or not);
-* the longest stall while the result is drawn at full resolution (from its frame at the
-  proxy on: the pause, the full mesh deformed and shaded in steps and drawn in passes,
-  :mod:`isochor.app.view.composer`), reported on its own so that it is never hidden in
-  the row before: the most the next press could wait, against one proxy frame (the drag's
-  median time a redraw);
+* the longest stall while the result is drawn at full resolution (once the view has
+  painted it at the proxy: the pause, the full mesh deformed and shaded in steps and drawn
+  in passes, :mod:`isochor.app.view.composer`), reported on its own so that it is never
+  hidden in the row before: the most the next press could wait, against one proxy frame
+  (the drag's median time a redraw);
 * from the release to its result drawn at the proxy (the first frame after the release
   solve's result was accepted);
 * the drags alternate with and without back-face culling of the (closed) model, so that
@@ -186,9 +186,9 @@ def _final_reason(runs, idle_ms: int, final: float, frame: float) -> str:
         f"the most a press could wait: drawn after a {idle_ms} ms pause in {count} passes, one "
         f"an event-loop turn (the background and lattice, then a piece of 65536 triangles "
         f"each; the longest {1e3 * longest:.1f} ms, medians over the runs), then shown by a "
-        f"paint of {1e3 * show:.1f} ms that draws only the overlays; measured from the "
-        f"result drawn at the proxy on (that frame's own gap: {1e3 * result_gap:.1f} ms, one "
-        f"proxy frame)" + over
+        f"paint of {1e3 * show:.1f} ms that draws only the overlays; counted once the view "
+        f"has painted the result at the proxy (the longest gap up to that paint, the result "
+        f"row's: {1e3 * result_gap:.1f} ms)" + over
     )
 
 
@@ -216,6 +216,7 @@ class Meter:
         self.phase = ""
         self.worst: dict[str, float] = {}
         self._last = time.perf_counter()
+        self._then = None  # (done, phase): :meth:`switch_after`
 
     def start(self, phase: str) -> None:
         self.phase = phase
@@ -224,13 +225,15 @@ class Meter:
         if not self.timer.isActive():
             self.timer.start()
 
-    def switch(self, phase: str, split: bool = False) -> None:
-        """Later gaps count for ``phase``; a gap spanning the switch counts for the new one,
-        or with ``split`` is cut there (its part so far counting for the old)."""
-        if split:
-            self._tick()
+    def switch(self, phase: str) -> None:
+        """Later gaps count for ``phase`` (a gap spanning the switch counts for the new)."""
         self.phase = phase
         self.worst.setdefault(phase, 0.0)
+
+    def switch_after(self, done, phase: str) -> None:
+        """Switch to ``phase`` at the first tick that finds ``done()`` true: the gap that
+        tick ends (the one ``done`` happened in) still counts for the phase before."""
+        self._then = (done, phase)
 
     def _tick(self) -> None:
         now = time.perf_counter()
@@ -238,6 +241,9 @@ class Meter:
         self._last = now
         if gap > self.worst.get(self.phase, 0.0):
             self.worst[self.phase] = gap
+        if self._then is not None and self._then[0]():
+            self.switch(self._then[1])
+            self._then = None
 
     def stop(self) -> None:
         self._tick()
@@ -351,7 +357,9 @@ def one_drag(app, win, row: int, meter: Meter) -> dict:
     def shown(*_args) -> None:  # (after the frame is drawn: connected after the window)
         if meter.phase == "result" and release["result"] is None:
             release["result"] = time.perf_counter() - release["at"]
-            meter.switch("final", split=True)  # what follows draws it at full resolution
+            # once the view has painted that frame, what follows draws it at full resolution
+            paints = vp.paints
+            meter.switch_after(lambda: vp.paints > paints, "final")
 
     def up() -> None:
         release["at"] = time.perf_counter()
