@@ -348,18 +348,19 @@ def one_drag(app, win, row: int, meter: Meter) -> dict:
     elapsed = time.perf_counter() - t0
     redraws = win.frames.redraws - redraws0
     win.session.frameReady.disconnect(frame)
-    release = {"gen": None, "at": 0.0, "result": None}
+    release = {"gen": None, "at": 0.0, "result": None, "paints": 0}
 
     def solved(gen: int, _ok: bool) -> None:
         if gen == release["gen"]:  # the result is accepted: what follows draws it
             meter.switch("result")
+            release["paints"] = vp.paints
 
     def shown(*_args) -> None:  # (after the frame is drawn: connected after the window)
         if meter.phase == "result" and release["result"] is None:
             release["result"] = time.perf_counter() - release["at"]
-            # once the view has painted that frame, what follows draws it at full resolution
-            paints = vp.paints
-            meter.switch_after(lambda: vp.paints > paints, "final")
+            # once the view has painted that frame (in its handler or a turn later), what
+            # follows draws it at full resolution
+            meter.switch_after(lambda: vp.paints > release["paints"], "final")
 
     def up() -> None:
         release["at"] = time.perf_counter()
