@@ -14,11 +14,12 @@ What it measures, each a median of the repeats:
 * the longest GUI-thread stall: a precise timer ticks every :data:`TICK_MS` ms on the GUI
   thread and the largest gap between two ticks is the longest time the GUI thread did not
   answer, from the press to the release solve's result (drawn or not);
-* the longest stall while the result is drawn at full resolution (once the view has
-  painted it at the proxy: the pause, the full mesh deformed and shaded in steps and drawn
-  in passes, :mod:`isochor.app.view.composer`), reported on its own so that it is never
-  hidden in the row before: the most the next press could wait, against one proxy frame
-  (the drag's median time a redraw);
+* the longest stall while the result is drawn at full resolution (after the release
+  solve's end, but for gaps that hold a paint of the proxy: the pause, the full mesh
+  deformed and shaded in steps and drawn in passes, :mod:`isochor.app.view.composer`,
+  and the paint that shows it), reported on its own so that it is never hidden in the
+  row before: the most the next press could wait, against one proxy frame (the drag's
+  median time a redraw);
 * from the release to its result drawn at the proxy (the first frame after the release
   solve's result was accepted);
 * the drags alternate with and without back-face culling of the (closed) model, so that
@@ -186,9 +187,9 @@ def _final_reason(runs, idle_ms: int, final: float, frame: float) -> str:
         f"the most a press could wait: drawn after a {idle_ms} ms pause in {count} passes, one "
         f"an event-loop turn (the background and lattice, then a piece of 65536 triangles "
         f"each; the longest {1e3 * longest:.1f} ms, medians over the runs), then shown by a "
-        f"paint of {1e3 * show:.1f} ms that draws only the overlays; counted once the view "
-        f"has painted the result at the proxy (the longest gap up to that paint, the result "
-        f"row's: {1e3 * result_gap:.1f} ms)" + over
+        f"paint of {1e3 * show:.1f} ms that draws only the overlays; a gap that holds a paint "
+        f"of the proxy (the result drawn at it) counts for the result row instead (the "
+        f"longest: {1e3 * result_gap:.1f} ms)" + over
     )
 
 
@@ -216,7 +217,7 @@ class Meter:
         self.phase = ""
         self.worst: dict[str, float] = {}
         self._last = time.perf_counter()
-        self._then = None  # (done, phase): :meth:`switch_after`
+        self.aside = None  #: () -> a phase the gap just ended counts for instead, or None
 
     def start(self, phase: str) -> None:
         self.phase = phase
@@ -230,20 +231,13 @@ class Meter:
         self.phase = phase
         self.worst.setdefault(phase, 0.0)
 
-    def switch_after(self, done, phase: str) -> None:
-        """Switch to ``phase`` at the first tick that finds ``done()`` true: the gap that
-        tick ends (the one ``done`` happened in) still counts for the phase before."""
-        self._then = (done, phase)
-
     def _tick(self) -> None:
         now = time.perf_counter()
         gap = now - self._last
         self._last = now
-        if gap > self.worst.get(self.phase, 0.0):
-            self.worst[self.phase] = gap
-        if self._then is not None and self._then[0]():
-            self.switch(self._then[1])
-            self._then = None
+        phase = (self.aside() if self.aside is not None else None) or self.phase
+        if gap > self.worst.get(phase, 0.0):
+            self.worst[phase] = gap
 
     def stop(self) -> None:
         self._tick()
@@ -348,19 +342,25 @@ def one_drag(app, win, row: int, meter: Meter) -> dict:
     elapsed = time.perf_counter() - t0
     redraws = win.frames.redraws - redraws0
     win.session.frameReady.disconnect(frame)
-    release = {"gen": None, "at": 0.0, "result": None, "paints": 0}
+    release = {"gen": None, "at": 0.0, "result": None, "solved": False}
+    seen = {"paints": vp.paints}
+
+    def proxy_painted() -> str | None:
+        """A gap that holds a paint of the proxy (the result drawn at the proxy, or drawn
+        again) counts for the result, not for the full-resolution drawing."""
+        painted, seen["paints"] = vp.paints != seen["paints"], vp.paints
+        proxy = vp.model_frames.drawn_model().startswith("proxy")
+        return "result" if meter.phase == "final" and painted and proxy else None
 
     def solved(gen: int, _ok: bool) -> None:
         if gen == release["gen"]:  # the result is accepted: what follows draws it
-            meter.switch("result")
-            release["paints"] = vp.paints
+            release["solved"] = True
+            meter.switch("final")
+            meter.aside = proxy_painted
 
     def shown(*_args) -> None:  # (after the frame is drawn: connected after the window)
-        if meter.phase == "result" and release["result"] is None:
+        if release["solved"] and release["result"] is None:
             release["result"] = time.perf_counter() - release["at"]
-            # once the view has painted that frame (in its handler or a turn later), what
-            # follows draws it at full resolution
-            meter.switch_after(lambda: vp.paints > release["paints"], "final")
 
     def up() -> None:
         release["at"] = time.perf_counter()
