@@ -8,6 +8,8 @@
 - :mod:`.handletool`    HandleTool: placing, selecting and dragging surface handles
 - :mod:`.modeldraw`     ModelFrames: a proxy while the model moves, the full mesh when it stops
 - :mod:`.modelview`     the model as drawn: full mesh or proxy level, their actors
+- :mod:`.composer`      Composer: a big model's full-mesh frame drawn in passes, one per
+  event-loop turn, and shown whole
 - :mod:`.meshprep`      what drawing a model needs, numpy only (draw order, shading, closed
   or not): computed off the GUI thread when a model opens or its lattice is rebuilt
 - :mod:`.scene`         the actors: the model, its ghost, the lattice, the selection

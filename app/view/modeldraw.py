@@ -7,11 +7,12 @@ at once, so that what a frame costs is measured whole). When a big model stops m
 result is drawn at the proxy at once, and the full mesh waits until the view has been left
 alone for :data:`IDLE_MS` (a press, a move or the wheel over the view starts the wait
 again: :meth:`ModelFrames.touched`); then a zero-interval timer prepares it one step per
-event-loop turn and renders it when it is ready; ``drawn`` says so. Its one render cannot
-be split (the 346k armadillo's: 45-80 ms in software OpenGL), so it is put where the user
-is least likely to press: after a pause, not right after the release, when the next drag
-often follows. A press that may start a drag draws the proxy already
-(:meth:`ModelFrames.hold_proxy`).
+event-loop turn, draws it in passes (:mod:`isochor.app.view.composer`: one render of the
+346k armadillo's full mesh is 45-80 ms in software OpenGL, a pass 5-16 ms) and shows it
+when it is ready; ``drawn`` says so. It is put where the user is least likely to press:
+after a pause, not right after the release, when the next drag often follows; a press
+between two steps draws the proxy at once and the passes start again after the next pause.
+A press that may start a drag draws the proxy already (:meth:`ModelFrames.hold_proxy`).
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ class ModelFrames(QObject):
     Parameters
     ----------
     scene : the actors (the model as full mesh or proxy, the lattice)
-    repaint : renders the view now (the full mesh is on screen when ``drawn`` says so)
+    repaint : paints the view now (the full mesh's frame, drawn in passes, is on screen when
+              ``drawn`` says so)
 
     Signals
     -------

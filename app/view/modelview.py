@@ -11,7 +11,9 @@ drawn as a *proxy*: the finest level of its pyramid with at most that many trian
 deformed by the same nodes, with the same colour and shading. When nothing moves any more
 the full mesh is drawn again: it is deformed and shaded in steps of :data:`STEP_FACES`
 triangles, one step per event-loop turn (:meth:`ModelView.step`, driven by the view), with
-the proxy on screen meanwhile, and then shown in place of the proxy.
+the proxy on screen meanwhile, and then drawn in passes of as many triangles, one per turn
+too (:attr:`MeshView.pieces`, :class:`~isochor.app.view.composer.Composer`), and shown in
+place of the proxy.
 
 The volume comes with the normals (the same cross products): the proxy's, scaled by the
 full mesh's rest volume over the proxy's, is an *estimate* (:attr:`ModelView.estimated`);
@@ -26,11 +28,14 @@ from collections.abc import Iterator
 
 import numpy as np
 import pyvista as pv
+from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
 
 from . import style
+from .composer import Composer
 from .meshprep import (  # noqa: F401 (draw_order, cells, capped_last: the view's names too)
     AT_ONCE_FACES,
     PROXY_TRIANGLES,
+    STEP_FACES,
     DisplayPrep,
     MeshPrep,
     Shading,
@@ -73,7 +78,42 @@ class MeshView:
             **LOOK,
         )
         self.set_culling(cull)
+        self._cells = prep.cells
+        self.pieces: list = []  #: actors on ranges of the triangles (:meth:`add_pieces`)
         self._smooth(smooth, prep.normals)
+
+    def add_pieces(self, plotter, faces: int = STEP_FACES) -> None:
+        """Actors that draw the mesh in pieces of ``faces`` triangles (consecutive in draw
+        order: each a compact region), hidden: a frame is composed of them in passes
+        (:mod:`isochor.app.view.composer`). They share this mesh's points, point arrays
+        (VTK uploads them once for all), property and mapper settings."""
+        quads = np.asarray(self._cells).reshape(-1, 4)
+        mapper = self.actor.GetMapper()
+        for s in range(0, len(quads), faces):
+            piece = pv.PolyData()
+            piece.SetPoints(self.poly.GetPoints())
+            piece.SetPolys(pv.CellArray(quads[s : s + faces].ravel()))
+            own = vtkPolyDataMapper()
+            own.ShallowCopy(mapper)
+            own.SetInputData(piece)
+            actor = vtkActor()
+            actor.SetMapper(own)
+            actor.SetProperty(self.actor.GetProperty())
+            actor.SetPickable(False)
+            actor.SetVisibility(False)
+            plotter.renderer.AddActor(actor)
+            self.pieces.append(actor)
+        self._share()
+
+    def remove_pieces(self, plotter) -> None:
+        for actor in self.pieces:
+            plotter.renderer.RemoveActor(actor)
+        self.pieces = []
+
+    def _share(self) -> None:
+        """The pieces draw this mesh's point arrays (after they were replaced)."""
+        for actor in self.pieces:
+            actor.GetMapper().GetInput().GetPointData().ShallowCopy(self.poly.GetPointData())
 
     def set_culling(self, on: bool) -> None:
         """Cull back faces (on) when the mesh is closed: software OpenGL then shades about
@@ -112,6 +152,7 @@ class MeshView:
             poly.GetPointData().SetNormals(None)
             prop.SetInterpolationToFlat()
         poly.Modified()
+        self._share()
 
 
 class Caps:
@@ -166,6 +207,8 @@ class ModelView:
         self._upgrade: Iterator[None] | None = None
         self._points: tuple[np.ndarray, np.ndarray] | None = None  # (nodes, full points)
         self._scale = 1.0  # full rest volume / proxy rest volume
+        #: draws the full mesh's frame in passes when a big model stops moving
+        self.composer = Composer(plotter.ren_win, plotter.renderer)
 
     # -- building ----------------------------------------------------------------------------
     def build(self, surface, nodes: np.ndarray, smooth: bool, prep: DisplayPrep | None = None):
@@ -177,6 +220,9 @@ class ModelView:
         self._upgrade, self._points = None, None
         if prep is None or not prep.fits(surface, self.nodes):
             prep = DisplayPrep.of(surface, self.nodes)
+        self.composer.cancel()
+        if self.full is not None:  # (the plotter removes the named actors, not the pieces)
+            self.full.remove_pieces(self.plotter)
         self.full = MeshView(self.plotter, prep.full, "model", self.smooth, self.cull)
         self._full_nodes = self.nodes.copy()
         self.folded = 0
@@ -188,6 +234,7 @@ class ModelView:
             self.proxy = MeshView(self.plotter, prep.proxy, "proxy", self.smooth, self.cull)
             self._scale = prep.scale
             self.proxy.actor.SetVisibility(False)
+            self.full.add_pieces(self.plotter)
 
     def set_culling(self, on: bool) -> None:
         """Cull the back faces of the closed meshes (on, the default) or draw them."""
@@ -203,23 +250,28 @@ class ModelView:
     # -- frames ------------------------------------------------------------------------------
     def draw(self, nodes: np.ndarray, moving: bool) -> None:
         """Draw the model at ``nodes``: the proxy while ``moving`` (a big model), else the
-        full mesh (a big model's in steps: :meth:`step`, the proxy on screen meanwhile)."""
+        full mesh (a big model's in steps and passes: :meth:`step`, the proxy on screen
+        meanwhile)."""
         nodes = np.array(nodes, dtype=np.float64)
         self.nodes = nodes
+        self.composer.cancel()
         if self.proxy is None or not moving:
             self._upgrade = None
             fresh = self._full_nodes is not None and np.array_equal(nodes, self._full_nodes)
             if not fresh and (self.proxy is None or self.full.n_faces <= AT_ONCE_FACES):
                 self.full.draw_at(self._surface.deform(nodes), self.smooth)
                 self._full_nodes, self._points, fresh = nodes.copy(), None, True
-            if fresh:
+            # (a big model's full mesh placed already but not on screen, after a press or
+            # during its passes, comes back in passes too: :meth:`_back`)
+            at_once = self.proxy is None or self.full.n_faces <= AT_ONCE_FACES
+            if fresh and (at_once or self.full.actor.GetVisibility()):
                 self._show(full=True)
                 self.volume, self.estimated = self.full.volume, False
                 return
         self.proxy.draw_at(self._surface.deform(nodes, level=self.proxy_k), self.smooth)
         self.volume, self.estimated = self.proxy.volume * self._scale, True
         self._show(full=False)
-        self._upgrade = None if moving else self._steps(nodes)
+        self._upgrade = None if moving else self._back(nodes)
 
     def lower(self) -> None:
         """Draw the proxy at the nodes drawn now, and the full mesh again through
@@ -234,10 +286,11 @@ class ModelView:
         if self._full_nodes is None or not np.array_equal(nodes, self._full_nodes):
             yield from self._steps(nodes)
             return
-        yield
+        yield from self._compose()
         if self.estimated:
             self.volume, self.estimated = self.full.volume, False
         self._show(full=True)
+        self.composer.arm()
 
     @property
     def upgrading(self) -> bool:
@@ -275,9 +328,17 @@ class ModelView:
         self.full.place(points, normals if self.smooth else None, volume)
         self._full_nodes = nodes.copy()
         self._points = None
+        yield from self._compose()
         if self.estimated:  # (not when a solve's result said it meanwhile)
             self.volume, self.estimated = volume, False
         self._show(full=True)
+        self.composer.arm()  # (the view's next paint shows the frame the passes drew)
+
+    def _compose(self) -> Iterator[None]:
+        """The frame with the full mesh drawn in passes, one a step (the proxy on screen
+        meanwhile; :mod:`isochor.app.view.composer`)."""
+        yield
+        yield from self.composer.passes(self.full.pieces, [self.full.actor, self.proxy.actor])
 
     def _show(self, full: bool) -> None:
         self.full.actor.SetVisibility(full)

@@ -288,7 +288,9 @@ class Viewport(QtInteractor):
 
     def paintGL(self) -> None:
         t0 = time.perf_counter()
-        with self._paint_hold():  # the solver starts no step while the renderer has the cores
+        # (the solver starts no step while the renderer has the cores; a frame composed in
+        # passes is shown by drawing only what they did not: modelview.ModelView.composer)
+        with self._paint_hold(), self.scene.model.composer.showing():
             super().paintGL()
         self.paint_seconds = time.perf_counter() - t0
         self.paints += 1

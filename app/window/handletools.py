@@ -109,8 +109,9 @@ class HandleTools:
         if render:
             vp.update()
 
-    def show(self) -> None:
-        """The Handles group, the symmetry choice and the markers, for the current state."""
+    def show(self, render: bool = True) -> None:
+        """The Handles group, the symmetry choice and the markers, for the current state;
+        ``render=False`` leaves the render to the frame that follows."""
         win = self.win
         st = win.state
         r = st.result if st.solved else None
@@ -120,7 +121,7 @@ class HandleTools:
         if win.viewport.scene.built:
             win.viewport.scene.set_mirror(st.mirror)
         win.action_set.remove_handle.setEnabled(win.doc.selection.handle is not None)
-        self.redraw()
+        self.redraw(render=render)
 
     def report(self) -> None:
         """After a solve with handles: what it says about them, in the status bar."""

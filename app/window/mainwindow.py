@@ -276,8 +276,10 @@ class MainWindow(QMainWindow):
         self._keyed = keyed
         self.readout.show_state()
         self.panel.show_target(st.goal.target_ratio * 100)
-        self.handle_tools.show()
-        self._selection_changed(repaint=False)  # (the state's frame follows: it repaints)
+        # (the state's frame follows and renders the view once: an extra render here was a
+        # whole render of a big model's full mesh, 100-170 ms in software OpenGL, per undo)
+        self.handle_tools.show(render=False)
+        self._selection_changed(repaint=False)
         self._status_changed()
 
     def _selection_changed(self, repaint: bool = True) -> None:

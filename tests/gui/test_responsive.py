@@ -1,8 +1,9 @@
 """Big models stay responsive (issues 27 and 29): a big model's lattice is rebuilt on a thread
 while the window answers, a model opened in the background arrives with the view's arrays
 computed on the loading thread, closed models are drawn without their back faces (the same
-picture), a moving camera draws the proxy and the full mesh comes back after a pause, and
-the editor's process ends as soon as its window has closed. Behaviour only: the times are
+picture), a moving camera draws the proxy and the full mesh comes back after a pause (drawn
+in passes, the same pixels; a press between two passes cancels them), and the editor's
+process ends as soon as its window has closed. Behaviour only: the times are
 the benchmark's (benchmarks/window.py, benchmarks/opening.py)."""
 
 from __future__ import annotations
@@ -228,6 +229,141 @@ def test_turning_the_camera_draws_the_proxy_then_the_full_mesh_after_a_pause(qtb
     QApplication.sendEvent(vp, wheel)
     assert frames.drawn_model().startswith("proxy")
     qtbot.waitUntil(frames.showing_full, timeout=10_000)
+
+
+def _shown_pixels(vp) -> np.ndarray:
+    """What the view shows now, read from VTK's display framebuffer (rendering nothing)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+
+    rw = vp.ren_win
+    w, h = rw.GetSize()
+    data = vtkUnsignedCharArray()
+    rw.GetPixelData(0, 0, w - 1, h - 1, 1, data, 0)
+    return vtk_to_numpy(data).reshape(h, w, 3).copy()
+
+
+def _turn_camera(qtbot, vp) -> None:
+    """A short camera turn on empty space, as a user's (the proxy drawn while it moves)."""
+    from PySide6.QtCore import QPoint, Qt
+    from PySide6.QtTest import QTest
+
+    corner = QPoint(15, vp.height() - 15)
+    left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
+    QTest.mousePress(vp, left, none, corner)
+    for dx in (10, 20, 30):
+        QTest.mouseMove(vp, corner + QPoint(dx, -dx // 2))
+        qtbot.wait(10)
+    QTest.mouseRelease(vp, left, none, corner + QPoint(30, -15))
+
+
+def test_the_full_mesh_comes_back_drawn_in_passes_with_the_same_pixels(qtbot, big_torus):
+    """After a pause the full mesh is drawn in passes (one piece of its triangles each) and
+    shown by a paint that draws only the rest: the picture is a normal render's, pixel for
+    pixel, and the proxy's before it is not."""
+    vp = big_torus.viewport
+    frames, model = vp.model_frames, vp.scene.model
+    composer = model.composer
+    model.full.remove_pieces(vp)
+    model.full.add_pieces(vp, faces=8192)  # (8 pieces of the 65536 triangles)
+    assert len(model.full.pieces) == 8
+    _turn_camera(qtbot, vp)
+    assert frames.drawn_model().startswith("proxy")
+    proxy = _shown_pixels(vp)
+    shown, passes = composer.shown, composer.passes_drawn
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    assert frames.drawn_model().startswith("full mesh")
+    assert composer.shown == shown + 1, "the frame the passes drew was shown"
+    assert composer.passes_drawn - passes >= 1 + 8, "the background pass and every piece"
+    composed = _shown_pixels(vp)
+    vp.repaint()  # a normal render of the same scene
+    qtbot.wait(50)
+    assert composer.shown == shown + 1
+    normal = _shown_pixels(vp)
+    assert composed.shape == normal.shape
+    differ = (np.abs(composed.astype(int) - normal.astype(int)).max(axis=2) > 0).sum()
+    assert differ == 0, f"{differ} pixels differ from a normal render"
+    assert (np.abs(proxy.astype(int) - normal.astype(int)).max(axis=2) > 0).sum() > 100
+
+
+def test_a_press_while_the_full_mesh_is_drawn_in_passes_cancels_them(qtbot, big_torus):
+    """A camera press landing between two passes draws the proxy at once; the passes' frame
+    is never shown, and the full mesh comes back after the next pause."""
+    from PySide6.QtCore import QPoint, Qt, QTimer
+    from PySide6.QtTest import QTest
+
+    vp = big_torus.viewport
+    frames, model = vp.model_frames, vp.scene.model
+    composer = model.composer
+    model.full.remove_pieces(vp)
+    model.full.add_pieces(vp, faces=4096)  # (16 pieces)
+    corner = QPoint(15, vp.height() - 15)
+    left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
+    pressed = {}
+
+    def press() -> None:
+        pressed["passes"] = composer.passes_drawn
+        pressed["full"] = frames.showing_full()
+        QTest.mousePress(vp, left, none, corner)
+        pressed["drawn"] = frames.drawn_model()
+        paints = vp.paints
+        vp.repaint()  # the press's paint, now
+        pressed["painted"] = vp.paints - paints
+        pressed["shown"] = composer.shown
+
+    def rendered(*_args) -> None:  # after the second pass: press in the next turn
+        if composer.passes_drawn - passes == 2 and not pressed and "armed" not in pressed:
+            pressed["armed"] = True
+            QTimer.singleShot(0, press)
+
+    _turn_camera(qtbot, vp)
+    shown, passes = composer.shown, composer.passes_drawn
+    tag = vp.ren_win.AddObserver("EndEvent", rendered)
+    try:
+        qtbot.waitUntil(lambda: "drawn" in pressed, timeout=10_000)
+    finally:
+        vp.ren_win.RemoveObserver(tag)
+    assert not pressed["full"], "the press came while the passes ran"
+    assert pressed["passes"] - passes < 1 + len(model.full.pieces)
+    assert pressed["drawn"].startswith("proxy"), pressed["drawn"]
+    assert pressed["painted"] == 1
+    assert pressed["shown"] == shown, "the cancelled passes' frame is not shown"
+    QTest.mouseRelease(vp, left, none, corner)
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    assert composer.shown == shown + 1, "the full mesh drawn in passes once, after the pause"
+
+
+def test_a_click_on_a_node_of_a_big_model_brings_the_full_mesh_back_in_passes(
+    qtbot, big_torus, monkeypatch
+):
+    """A press on a node draws the proxy (a drag may follow); its release without a drag
+    does not render the full mesh whole at once: it comes back after the pause, drawn in
+    passes, at the same nodes (nothing deformed or shaded again)."""
+    from PySide6.QtCore import Qt
+    from PySide6.QtTest import QTest
+
+    from isochor.app.view import modelview
+    from tests.gui.test_editor import pickable_node, point, screen_positions
+
+    monkeypatch.setattr(modelview, "AT_ONCE_FACES", 0)  # (the torus as if it were bigger)
+    win = big_torus
+    vp = win.viewport
+    frames, composer = vp.model_frames, vp.scene.model.composer
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    row = pickable_node(win, want_free=True)
+    at = point(screen_positions(win)[0][row])
+    left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
+    shown, volume = composer.shown, vp.model_volume
+    QTest.mousePress(vp, left, none, at)
+    assert frames.drawn_model().startswith("proxy"), "a drag may follow: the proxy"
+    QTest.mouseRelease(vp, left, none, at)
+    assert frames.drawn_model().startswith("proxy"), "not the full mesh whole at once"
+    assert not frames.showing_full()
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    assert frames.drawn_model().startswith("full mesh")
+    assert composer.shown == shown + 1, "drawn in passes"
+    assert vp.model_volume == volume and not vp.scene.volume_estimated
+    assert list(win.doc.selection.rows) == [row], "the click selected the node"
 
 
 QUIT_CHILD = r"""
