@@ -192,7 +192,8 @@ def test_profile_comes_from_cprofile_and_leaves_the_core_alone(small_case):
     for lv, s in zip(prof.levels, prof.result.levels, strict=True):
         assert (lv.triangles, lv.steps, lv.level_s) == (s.triangles, s.steps, s.time_s)
         assert lv.evals >= lv.steps > 0 and lv.eval_s > 0 and lv.segment_s >= lv.level_s * 0.9
-        assert lv.calls["basis transpose"].calls == lv.evals  # one per volume gradient
+        # one per volume gradient on the NumPy path; none in the compiled one pass
+        assert lv.calls["basis transpose"].calls in (0, lv.evals)
         assert lv.calls["springs"].calls > 0
     tot = prof.totals
     assert tot["volume+gradient"].calls >= sum(lv.evals for lv in prof.levels) + 1  # the start
