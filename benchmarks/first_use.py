@@ -70,12 +70,16 @@ SHARED = (
 INSIDE_MODELS = ("cow.obj", "spot_triangulated.obj", "kitten.obj", "torus_knot_quads.obj")
 BIG5 = "armadillo_5533k.ply"
 
+#: the command in a wrapper that prints its peak resident set (:func:`peak_rss_mb`: its own
+#: map's high-water mark; ``ru_maxrss`` keeps the spawning benchmark process's size, which
+#: once made the 1.38M command look 3.5 GB)
 _WRAP = (
-    "import sys, json, resource\n"
+    "import sys, json\n"
     "from isochor.app.cli.main import main\n"
+    "from benchmarks.timing import peak_rss_mb\n"
     "rc = main(sys.argv[1:])\n"
-    "print('BENCH:' + json.dumps({'rss_mb': resource.getrusage(resource.RUSAGE_SELF)"
-    ".ru_maxrss / 1024, 'numba': 'numba' in sys.modules}), file=sys.stderr)\n"
+    "print('BENCH:' + json.dumps({'rss_mb': peak_rss_mb(), 'numba': 'numba' in sys.modules}),"
+    " file=sys.stderr)\n"
     "sys.exit(rc)\n"
 )
 
@@ -480,7 +484,7 @@ class TreePeak:
     outside every ``every`` seconds while the child lives: the command's resident set plus
     the pages only the child holds (what it allocated and what it copied on writing). The
     pages they share count once, those shared with other programs (libraries) in full: an
-    upper bound of what the two hold. ``ru_maxrss`` of the command alone (in the wrapper)
+    upper bound of what the two hold. The peak of the command alone (in the wrapper)
     is exact for the rest of the run, but a fork's child has its own. Linux only (/proc);
     elsewhere it sees nothing (0)."""
 
