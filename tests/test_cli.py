@@ -435,3 +435,22 @@ def test_a_signal_whose_exception_comes_out_as_another_is_still_an_interruption(
         interrupts.state.raised = before
     assert status == 130
     assert capsys.readouterr().err == "isochor: interrupted (SIGINT); nothing was written\n"
+
+
+def test_a_one_shot_command_sets_its_heap_thresholds(monkeypatch, tmp_path):
+    """``isochor solve`` sets glibc's malloc thresholds before the model is made (the
+    first-solve rows of the benchmark measure what it saves); elsewhere it is a no-op."""
+    import platform
+
+    from isochor.app.cli import opening
+    from tests.fresh import run_fresh
+
+    calls = []
+    monkeypatch.setattr(opening, "steady_heap", lambda: calls.append(True) or True)
+    assert main(["solve", "--example", "cup-squeeze", "-q"]) == 0
+    assert calls, "the command set its heap thresholds"
+    proc, _ = run_fresh(
+        "from isochor.app.cli.opening import steady_heap\nprint('SET', steady_heap())\n"
+    )
+    glibc = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
+    assert f"SET {glibc}" in proc.stdout, proc.stderr

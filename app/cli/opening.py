@@ -4,6 +4,7 @@ pay in a one-shot command."""
 from __future__ import annotations
 
 import contextlib
+import sys
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -11,12 +12,43 @@ if TYPE_CHECKING:
     from ...core.scenario.document import Scenario
 
 
+#: glibc's malloc for a one-shot command: blocks under this size come from the heap, and
+#: freed ones stay for the next (its default starts at 128 kB and grows only as blocks
+#: are freed, so a first solve maps and unmaps, and faults in, the same fresh pages step
+#: after step); ...
+MMAP_THRESHOLD = 4 << 20
+#: ... and this much free heap is kept rather than given back at once
+TRIM_THRESHOLD = 16 << 20
+
+
 def one_shot() -> None:
     """A one-shot command decides itself whether to load the compiled kernels
-    (:func:`open_session`): evaluations do not start them on their own."""
+    (:func:`open_session`): evaluations do not start them on their own. Its heap keeps
+    the blocks a solve frees for the next step (:func:`steady_heap`)."""
     from ...core import kernels
 
     kernels.set_autostart(False)
+    steady_heap()
+
+
+def steady_heap() -> bool:
+    """Set glibc's malloc thresholds (:data:`MMAP_THRESHOLD`, :data:`TRIM_THRESHOLD`) for
+    this process; whether they were set (not on another C library). Measured (the
+    benchmark's first-solve rows, interleaved): the cold torus examples' first solves
+    about 4 % shorter with about 40 % fewer page faults, and the 1.38M command's peak
+    612 -> 557 MB (its pyramid's child keeps less free heap)."""
+    import ctypes
+
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):  # not glibc
+        return False
+    m_trim_threshold, m_mmap_threshold = -1, -3  # glibc's malloc.h
+    return bool(mallopt(m_mmap_threshold, MMAP_THRESHOLD)) and bool(
+        mallopt(m_trim_threshold, TRIM_THRESHOLD)
+    )
 
 
 def open_session(scenario: Scenario, progress=None) -> Session:
