@@ -45,6 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import kernels
+from .lattice import PointBasis
 
 try:  # the C++ kernel behind ``csc_matrix @ vector``, called on column blocks in place
     from scipy.sparse import _sparsetools as _st
@@ -283,13 +284,17 @@ class VolumeOperator:
                 return fast
         return _triple_product_sum(_coordinate_rows(vertices, center), *self._corners) / 6.0
 
+    def _fan(self):
+        """The compiled kernels' fans of this mesh, made on first use (None: no kernels)."""
+        if self._fans is None:
+            self._fans = kernels.fans(self.faces, self.n_vertices)
+        return self._fans
+
     def _compiled(self, vertices, center) -> tuple[float, np.ndarray] | None:
         """:meth:`value_and_gradient` by :mod:`core.kernels`; None where it is not ready."""
         if len(vertices) != self.n_vertices or not kernels.active(len(self.faces)):
             return None
-        if self._fans is None:
-            self._fans = kernels.fans(self.faces, self.n_vertices)
-        out = kernels.volume_gradient(self._fans, _coordinate_rows(vertices, None), center)
+        out = kernels.volume_gradient(self._fan(), _coordinate_rows(vertices, None), center)
         return None if out is None else (out[0], out[1].T)
 
     def node_gradient(
@@ -301,18 +306,15 @@ class VolumeOperator:
         :class:`core.lattice.PointBasis` of these vertices, one pass over ranges of
         vertices (:mod:`core.kernels.fused`: the same numbers, without writing the points
         and the vertex gradient out and reading them back)."""
-        from .lattice import PointBasis
-
         nodes = np.asarray(nodes, dtype=np.float64)
         if (
             type(basis) is PointBasis
             and basis.n_points == self.n_vertices
             and kernels.active(len(self.faces))
         ):
-            if self._fans is None:
-                self._fans = kernels.fans(self.faces, self.n_vertices)
-            if self._plan is None and self._fans is not None:
-                self._plan = kernels.evaluation_plan(self._fans)
+            fans = self._fan()
+            if self._plan is None and fans is not None:
+                self._plan = kernels.evaluation_plan(fans)
             fast = kernels.evaluation(self._plan, basis.uvw, nodes, basis.shape, center)
             if fast is not None:
                 return fast
