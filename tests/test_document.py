@@ -523,6 +523,18 @@ def test_edit_lattice_checks_the_shape(doc):
     assert edit.state.lattice.shape == (10, 2, 10)
 
 
+def test_edit_lattice_keeps_the_outside_option_where_the_basis_has_it(doc):
+    commit(doc, latticerules.edit_lattice(doc.base(), (4, 4, 4), "bspline", True))
+    assert doc.state.lattice.outside
+    kept = latticerules.edit_lattice(doc.base(), (5, 4, 4))  # None keeps it
+    assert kept.state.lattice.outside and "outside" in kept.text
+    with pytest.raises(IsochorError, match="Outside option needs a local basis"):
+        latticerules.edit_lattice(doc.base(), (4, 4, 4), "bernstein", True)
+    dropped = latticerules.edit_lattice(doc.base(), (4, 4, 4), "bernstein")  # Bernstein has none
+    assert not dropped.state.lattice.outside
+    assert dropped.state.lattice.basis == ("bernstein",) * 3
+
+
 def test_edit_lattice_reuses_a_problem_built_before(doc):
     first = latticerules.edit_lattice(doc.base(), (4, 3, 3))
     commit(doc, first)

@@ -24,7 +24,8 @@ from .state import DocState, plural
 def edit_lattice(base: EditBase, shape, basis=None, outside=None) -> Edit | None:
     """A new lattice of ``shape`` nodes around the same model, at rest; ``basis`` (one name
     or three, :data:`isochor.core.localbasis.NAMES`) changes its basis too (None keeps it),
-    and ``outside`` Blender's Outside option (None keeps it; a local basis only).
+    and ``outside`` Blender's Outside option (None keeps it, but for Bernstein, which has
+    none; True with Bernstein is refused).
 
     Moves, pins and the timeline's keys are dropped (they name nodes of the old lattice);
     the model pyramid is reused, and so is a problem built before for the same shape, with
@@ -38,10 +39,11 @@ def edit_lattice(base: EditBase, shape, basis=None, outside=None) -> Edit | None
     if len(shape) != 3 or not all(low <= s <= high for s in shape):
         which = "a local basis" if local else "the Bernstein basis"
         raise IsochorError(f"A lattice with {which} has {low} to {high} nodes per axis.")
-    outside = st.lattice.outside if outside is None else bool(outside)
-    if outside and not local:
+    if outside is None:  # kept where the basis has it: a change to Bernstein drops it
+        outside = st.lattice.outside and local
+    elif outside and not local:
         raise IsochorError("The Outside option needs a local basis (B-spline, ...), not Bernstein.")
-    outside = outside and local
+    outside = bool(outside)
     if (
         shape == tuple(st.lattice.shape)
         and basis == st.lattice.basis
