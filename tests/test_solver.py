@@ -281,3 +281,92 @@ def test_the_preconditioner_never_slows_a_run_where_the_fold_guard_takes_hold():
         steps[pre], results[pre] = sum(s.steps for s in r.levels), r
     assert steps[True] <= 1.2 * steps[False], steps
     assert abs(results[True].rel_volume_error) <= p.scenario.tol_volume
+
+
+# -- the penalty factor from the stiffness, the inexact inner runs ----------------------------
+def test_the_stiffness_is_the_energy_cost_of_moving_the_constraints():
+    """``kappa = 1 / lambda_min(J A^-1 J^T)``: on a quadratic energy ``y^T A y / 2`` the least
+    energy with ``J y = t`` is ``t^T (J A^-1 J^T)^-1 t / 2``, so for one constraint it is
+    ``kappa t^2 / 2`` exactly, and for several at most ``kappa |t|^2 / 2``."""
+    from isochor.core.solve.precondition import Curvature, Preconditioner
+
+    rng = np.random.default_rng(3)
+    b = rng.normal(size=(12, 12))
+    a = b @ b.T + 12 * np.eye(12)
+    for m in (1, 3):
+        jac = rng.normal(size=(m, 12))
+        kappa = Preconditioner(Curvature(a), jac).stiffness()
+        t = rng.normal(size=m)
+        # the least-energy y with J y = t, by the KKT system
+        kkt = np.block([[a, jac.T], [jac, np.zeros((m, m))]])
+        y = np.linalg.solve(kkt, np.concatenate([np.zeros(12), t]))[:12]
+        least = 0.5 * y @ a @ y
+        # Curvature adds a ridge of 1e-6 of the mean diagonal: kappa within that of exact
+        if m == 1:
+            assert least == pytest.approx(0.5 * kappa * t @ t, rel=1e-5)
+        else:
+            assert least <= 0.5 * kappa * (t @ t) * (1 + 1e-5)
+            worst = np.linalg.eigh(jac @ np.linalg.solve(a, jac.T))[1][:, 0]
+            y = np.linalg.solve(kkt, np.concatenate([np.zeros(12), worst]))[:12]
+            assert 0.5 * y @ a @ y == pytest.approx(0.5 * kappa, rel=1e-5)
+    # no constraint gradient: nothing is known
+    assert Preconditioner(Curvature(a), np.zeros((0, 12))).stiffness() == 0.0
+
+
+def _outer_iterations(options):
+    """The torus compression's first level, from its start: (outer iterations, steps, the
+    level's result)."""
+    problem = build(example_scenario("torus-compression"))
+    records, result = run(solve(problem.surface, problem.nodes, problem.fixed, options=options))
+    first = [r for r in records if r.level == result.levels[0].level and not r.level_done]
+    outer = len({r.lam for r in first})  # one multiplier per outer iteration
+    return outer, result.levels[0].steps, result
+
+
+def test_a_penalty_factor_from_the_stiffness_saves_outer_iterations_and_ends_the_same():
+    """The torus compression's stiffness against the volume is about 72: at sigma 10 the
+    multiplier update gains a factor 72 / 82 an iteration (10 of them on the first level);
+    at 9 kappa a digit."""
+    from dataclasses import replace
+
+    base = SolverOptions()
+    fixed_sigma = replace(base, stiffness_ratio=0.0, inexact=0.0)
+    stiff = replace(base, inexact=0.0)
+    outer_fixed, steps_fixed, r_fixed = _outer_iterations(fixed_sigma)
+    outer_stiff, steps_stiff, r_stiff = _outer_iterations(stiff)
+    assert outer_stiff <= outer_fixed / 2, (outer_stiff, outer_fixed)
+    assert steps_stiff < steps_fixed
+    for r in (r_fixed, r_stiff):
+        assert r.converged and abs(r.rel_volume_error) <= base.tol_volume
+    # the same constrained minimum: energies within the tolerance's first-order effect
+    # (lambda * tol_volume, lambda about 33, relative to an energy of 8.5)
+    assert r_stiff.energy == pytest.approx(r_fixed.energy, rel=33 * base.tol_volume / 8.5)
+    size = build(example_scenario("torus-compression")).surface.size
+    assert np.max(np.abs(r_stiff.nodes - r_fixed.nodes)) < 2e-3 * size
+
+
+def test_inexact_inner_runs_save_steps_and_a_converged_level_ends_at_gtol():
+    """Early inner runs stop at 1% of the coming multiplier update's change to the
+    gradient; the run that ends a level (the constraint within ten tolerances) stops at
+    ``gtol`` alone, so the level's end is a point of the same accuracy."""
+    from dataclasses import replace
+
+    from isochor.core.solve.solver import _loose
+
+    base = SolverOptions()
+    _, steps_exact, r_exact = _outer_iterations(replace(base, inexact=0.0))
+    _, steps_inexact, r_inexact = _outer_iterations(base)
+    assert steps_inexact < steps_exact
+    assert r_inexact.converged and abs(r_inexact.rel_volume_error) <= base.tol_volume
+    assert r_inexact.energy == pytest.approx(r_exact.energy, rel=1e-5)
+
+    class Problem:  # only the constraint gradients are read
+        def terms(self, y):
+            return 0.0, None, np.zeros(1), np.array([[0.5, -2.0, 1.0]])
+
+    tol = 1e-4
+    loose = _loose(Problem(), np.zeros(3), sigma=100.0, tol=tol, inexact=0.01)
+    assert loose((0.0, 0.3)) == pytest.approx(0.01 * 100.0 * 0.3 * 2.0)
+    assert loose((0.0, -0.3)) == loose((0.0, 0.3))
+    assert loose((0.0, 10 * tol)) == 0.0  # near the constraint: gtol alone
+    assert _loose(Problem(), np.zeros(3), 100.0, tol, 0.0) is None

@@ -73,12 +73,15 @@ def test_a_drag_evaluates_the_full_mesh_once_and_solves_as_before(solved, monkey
     with kernels.numpy_path():
         full._last = (None, 0.0)  # forget the memo of an earlier solve
         records, result = _solve(problem)
-        assert counting.calls == 1  # the result's measurement, after the last record
+        # the result's measurement, after the last record; none where the solve ended on
+        # the full mesh (its last evaluation there left the volume in the level's memo)
+        measured = 0 if result.terminal_level == len(problem.surface.levels) - 1 else 1
+        assert counting.calls == measured
         # the same solve as when the full mesh decides where to start
         monkeypatch.setattr(multilevel, "_missed", lambda *args: False)
         full._last = (None, 0.0)
         before, again = _solve(problem)
-    assert counting.calls == 3  # the start and the result
+    assert counting.calls == 2 * measured + 1  # the start, then the result as before
     assert [r.level for r in records] == [r.level for r in before]
     assert np.array_equal(result.nodes, again.nodes) and result.converged == again.converged
 

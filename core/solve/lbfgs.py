@@ -39,13 +39,16 @@ def lbfgs(
     max_iter: int,
     memory: int = 12,
     h0: Callable[[np.ndarray], np.ndarray] | None = None,
+    loose: Callable[[tuple[float, float]], float] | None = None,
 ) -> Generator[tuple[np.ndarray, tuple[float, float]], None, tuple[np.ndarray, int, bool]]:
     """Minimise ``fun`` from ``x0``; yields ``(x, aux)`` after every accepted step.
 
     ``fun(x)`` returns ``(f, grad, aux)``. Returns ``(x, steps, converged)``. ``h0``, when
     given, applies an approximate inverse Hessian (the preconditioner): it replaces the
     scaled identity of the two-loop recursion, and the first step is ``-h0(g)`` tried
-    whole, like every quasi-Newton step.
+    whole, like every quasi-Newton step. ``loose``, when given, is a second stopping
+    tolerance on ``max |grad|`` taken from the iterate's ``aux`` (the inexact inner runs of
+    :func:`isochor.core.solve.solver.augmented_lagrangian`).
     """
     cache: dict[bytes, tuple[float, np.ndarray, tuple[float, float]]] = {}
 
@@ -58,7 +61,7 @@ def lbfgs(
         return cache[key]
 
     x = np.array(x0, dtype=np.float64)
-    f, g, _ = evaluate(x)
+    f, g, aux = evaluate(x)
     pairs = Pairs(memory, len(x))
     f_old = None
     for it in range(max_iter):
@@ -67,7 +70,7 @@ def lbfgs(
         d, g_max, slope = _direction(pairs, g, h0)
         if not np.isfinite(g_max):
             raise FloatingPointError("the objective gradient is not finite")
-        if g_max <= gtol:
+        if g_max <= gtol or (loose is not None and g_max <= loose(aux)):
             return x, it, True
         if slope >= 0:  # not a descent direction: restart from steepest descent
             pairs.forget()

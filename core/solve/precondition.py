@@ -246,6 +246,19 @@ class Preconditioner:
         self._u = curvature.solve(jac.T) if curvature.ok and jac.size else None
         self._sigma, self._apply = None, None
 
+    def stiffness(self) -> float:
+        """The energy's stiffness against the constraints, ``kappa = 1 / lambda_min(J A^-1
+        J^T)``: on the quadratic model, moving the constraints by ``t`` (their gradients'
+        directions, the rest free) costs at most ``kappa |t|^2 / 2`` of energy. The
+        multiplier update's linear rate is about ``kappa / (kappa + sigma)``
+        (:func:`isochor.core.solve.solver.augmented_lagrangian`). 0.0 where it is not known
+        (no constraint, a curvature that is not positive definite), ``inf`` where the free
+        variables cannot move the constraints."""
+        if self._u is None or not _finite(self._u):
+            return 0.0
+        lowest = float(np.linalg.eigvalsh(np.atleast_2d(self._jac @ self._u))[0])
+        return 1.0 / lowest if lowest > 0 else float("inf")
+
     def at(self, sigma: float) -> Callable[[np.ndarray], np.ndarray] | None:
         """``v -> M^-1 v`` for this ``sigma``, or None where ``M`` is not positive definite
         (non-finite numbers): the solver then keeps the plain L-BFGS scaling."""
