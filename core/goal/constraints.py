@@ -125,12 +125,15 @@ class Level:
             self.faces, vertices = place[mesh.faces], mesh.vertices[order]
             del place
         self.basis: PointBasis | LocalPointBasis = lattice.point_basis(vertices)
-        del vertices
         self.volume_op = VolumeOperator(self.faces, mesh.n_vertices)
+        # the rest lattice's FFD is the identity: the level's own vertices, not the basis
+        # applied to the rest nodes (the same volume to rounding, without a pass of the
+        # basis over the level: the full mesh's costs a first solve 1-3 ms)
+        self.rest_volume = self.volume_op(vertices, center)
+        del vertices
         self._last: tuple[bytes | None, float] = (None, 0.0)
         self._parts: tuple[list[_Part], np.ndarray] | None = None
         self._rest_bodies: np.ndarray | None = None
-        self.rest_volume = self.volume(lattice.rest_nodes)
 
     def deform(self, nodes: np.ndarray) -> np.ndarray:
         """(m, 3) the level's vertices moved by ``nodes``, in the mesh's order."""
