@@ -309,8 +309,13 @@ def test_the_stiffness_is_the_energy_cost_of_moving_the_constraints():
             worst = np.linalg.eigh(jac @ np.linalg.solve(a, jac.T))[1][:, 0]
             y = np.linalg.solve(kkt, np.concatenate([np.zeros(12), worst]))[:12]
             assert 0.5 * y @ a @ y == pytest.approx(0.5 * kappa, rel=1e-5)
-    # no constraint gradient: nothing is known
+    # no constraint gradient: nothing is known; a constraint repeated: its combination
+    # that nothing moves is left out, the stiffness is the one constraint's, halved
     assert Preconditioner(Curvature(a), np.zeros((0, 12))).stiffness() == 0.0
+    jac = rng.normal(size=(1, 12))
+    once = Preconditioner(Curvature(a), jac).stiffness()
+    twice = Preconditioner(Curvature(a), np.vstack([jac, jac])).stiffness()
+    assert twice == pytest.approx(once / 2, rel=1e-9)
 
 
 def _outer_iterations(options):

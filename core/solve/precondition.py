@@ -251,13 +251,15 @@ class Preconditioner:
         J^T)``: on the quadratic model, moving the constraints by ``t`` (their gradients'
         directions, the rest free) costs at most ``kappa |t|^2 / 2`` of energy. The
         multiplier update's linear rate is about ``kappa / (kappa + sigma)``
-        (:func:`isochor.core.solve.solver.augmented_lagrangian`). 0.0 where it is not known
-        (no constraint, a curvature that is not positive definite), ``inf`` where the free
-        variables cannot move the constraints."""
+        (:func:`isochor.core.solve.solver.augmented_lagrangian`). Combinations of the
+        constraints that the free variables cannot move (dependent constraints: an
+        eigenvalue within rounding of 0) are left out; 0.0 where nothing is known (no
+        constraint, a curvature that is not positive definite)."""
         if self._u is None or not _finite(self._u):
             return 0.0
-        lowest = float(np.linalg.eigvalsh(np.atleast_2d(self._jac @ self._u))[0])
-        return 1.0 / lowest if lowest > 0 else float("inf")
+        w = np.linalg.eigvalsh(np.atleast_2d(self._jac @ self._u))
+        moved = w[w > len(w) * np.finfo(float).eps * max(float(w[-1]), 0.0)]
+        return 1.0 / float(moved[0]) if moved.size else 0.0
 
     def at(self, sigma: float) -> Callable[[np.ndarray], np.ndarray] | None:
         """``v -> M^-1 v`` for this ``sigma``, or None where ``M`` is not positive definite
