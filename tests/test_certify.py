@@ -84,3 +84,43 @@ def test_never_fold_free_unless_proven():
             assert jacobian_determinants(lat, proof.witness[None], nodes)[0] <= 0
             outcomes.add("folded")
     assert {"proven", "folded"} <= outcomes
+
+
+def test_two_threads_asking_the_occupancy_at_once_both_get_the_whole_grid(monkeypatch):
+    """A stopped drag's solve may still be measuring while the next one starts: the thread
+    that comes second waits for the grid the first is building (it once found the inputs
+    gone and the tables not yet made: AttributeError in the window)."""
+    import threading
+
+    mesh = icosphere(2)
+    lat = Lattice.around(mesh.vertices, (3, 3, 3))
+    occupancy = Occupancy(lat, mesh.vertices, mesh.faces)
+    building, go = threading.Event(), threading.Event()
+    real = Occupancy._make
+
+    def slow(self, *args):
+        building.set()
+        assert go.wait(10)
+        real(self, *args)
+
+    monkeypatch.setattr(Occupancy, "_make", slow)
+    results, errors = {}, []
+
+    def ask(name):
+        try:
+            results[name] = occupancy.block(np.full(3, 0.4), np.full(3, 0.6))
+        except Exception as exc:  # pragma: no cover - the failure this test is for
+            errors.append(exc)
+
+    first = threading.Thread(target=ask, args=("first",))
+    first.start()
+    assert building.wait(10)
+    second = threading.Thread(target=ask, args=("second",))
+    second.start()
+    second.join(0.2)
+    assert second.is_alive() and not errors  # waiting for the grid, not failing
+    go.set()
+    first.join(10)
+    second.join(10)
+    assert not errors
+    assert results["first"] == results["second"] == (True, True)  # the middle is solid

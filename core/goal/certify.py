@@ -31,6 +31,7 @@ per-cell basis plugs in by converting each cell to its Bezier form.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from math import comb
 
@@ -193,16 +194,24 @@ class Occupancy:
     ) -> None:
         self.cells = int(cells)
         self._inputs: tuple | None = (lattice, vertices, faces)
+        #: two solver threads may measure at once (a stopped drag's solve still ending
+        #: beside the next one's): one builds, the other waits for the whole grid
+        self._lock = threading.Lock()
 
     def _build(self) -> None:
         """The grid, built on first use (a certification proven on the whole lattice box
-        at once never needs it)."""
+        at once never needs it). The inputs are dropped only once every table is made, so
+        a thread that finds them gone finds the tables."""
         if self._inputs is None:
             return
+        with self._lock:
+            if self._inputs is not None:
+                self._make(*self._inputs)
+                self._inputs = None
+
+    def _make(self, lattice: Lattice, vertices: np.ndarray, faces: np.ndarray) -> None:
         from scipy import ndimage
 
-        lattice, vertices, faces = self._inputs
-        self._inputs = None
         g = self.cells
         uvw = lattice.to_parameters(np.asarray(vertices, dtype=np.float64))
         tri = uvw[np.asarray(faces, dtype=np.int64)]  # (f, 3, 3)
