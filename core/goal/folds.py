@@ -58,8 +58,8 @@ def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) 
     than ``count / 2`` are inside, the grid is refined (twice at most); the mesh's own
     volume over its box's predicts that share, so such a model starts on the refined grid
     (one inside test instead of two: the torus and the club fill 49 % of theirs). The
-    grid never has
-    more than ``budget / triangles`` points (the fold guard's cost grows with them).
+    grid never has more than ``budget / triangles`` points (the fold guard's cost grows
+    with them).
     Deterministic.
 
     Parameters
