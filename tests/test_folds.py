@@ -249,3 +249,126 @@ def test_guard_skips_only_what_it_can_prove_is_above_the_margin(evaluation_path,
             np.testing.assert_allclose(gn, gn0, rtol=1e-12, atol=1e-300)
     assert skipped >= 20, "small moves far from any fold are answered without evaluating"
     assert partial >= 5, "moves near a fold evaluate only the samples that may be near it"
+
+
+def _far_sphere_surface(shape=(3, 4, 3), basis="bernstein"):
+    """A sphere far from the origin (its digits kept by measuring about its centre) in a
+    lattice around it, as the one level of a surface."""
+    from isochor.core.solve.surface import EmbeddedSurface
+
+    m = _sphere(subdivisions=4)
+    mesh = TriMesh(m.vertices + [50.0, -20.0, 10.0], m.faces)
+    lattice = Lattice.around(mesh.vertices, shape, basis=basis)
+    nodes = lattice.rest_nodes + np.random.default_rng(5).normal(
+        scale=0.08, size=(lattice.n_nodes, 3)
+    )
+    return EmbeddedSurface(lattice, [mesh]), nodes
+
+
+def _position_bound(lattice: Lattice, nodes: np.ndarray, center: np.ndarray) -> float:
+    """How far two evaluations of the FFD may put one point apart by rounding: each is a
+    convex combination (Bernstein weights >= 0, summing to 1) of the nodes about ``center``,
+    so each errs by at most (nodes + the weights' own ~3 x 10 operations) eps times the
+    farthest node; twice that for the two."""
+    eps = np.finfo(np.float64).eps
+    return 2.0 * (lattice.n_nodes + 30) * eps * float(np.abs(nodes - center).max())
+
+
+def test_survey_moves_the_vertices_as_the_basis_does_and_keeps_det_j_bit_for_bit():
+    """The fold check's one pass (the NumPy path): the vertices where the level's own
+    basis puts them, to the rounding bound, and det J exactly as the blocked evaluation
+    gives it at the same (shifted) nodes; the determinants are kept for the check."""
+    with kernels.numpy_path():
+        surface, nodes = _far_sphere_surface()
+        center = surface.center
+        check = surface.fold_check
+        points = check.survey(nodes, center)
+        assert points.shape == (3, surface.full.n_vertices)
+        expected = surface.level(-1).local(nodes)  # the basis on the nodes about center
+        gap = float(np.abs(points.T - expected).max())
+        assert gap <= _position_bound(surface.lattice, nodes, center), gap
+        samples = np.concatenate([surface.full.vertices, surface.interior])
+        direct = jacobian_determinants(surface.lattice, samples, nodes - center)
+        at_vertices, inside = check.determinants(nodes)  # read from the survey
+        assert np.array_equal(np.concatenate([at_vertices, inside]), direct)
+        assert not at_vertices.flags.writeable  # kept: nobody may change them
+
+
+def test_survey_gives_the_full_volume_and_folds_a_second_surface_measures_alone():
+    from isochor.core.solve.surface import EmbeddedSurface
+    from isochor.core.volume import face_volumes
+
+    with kernels.numpy_path():
+        surface, nodes = _far_sphere_surface()
+        alone = EmbeddedSurface(surface.lattice, surface.levels)
+        surface.survey(nodes)
+        full = surface.level(-1)
+        assert full.knows(nodes)
+        v, v_alone = full.volume(nodes), alone.level(-1).volume(nodes)
+        # the bound: every vertex within delta of the other evaluation's, so each face's
+        # volume within delta (|b x c| + |c x a| + |a x b|) / 6, plus both sums' rounding
+        moved = alone.level(-1).local(nodes)
+        a, b, c = (moved[surface.full.faces[:, i]] for i in range(3))
+        na, nb, nc = (np.linalg.norm(t, axis=1) for t in (a, b, c))
+        delta = np.sqrt(3) * _position_bound(surface.lattice, nodes, surface.center)
+        eps = np.finfo(np.float64).eps
+        sums = 2 * len(a) * eps * np.abs(face_volumes(moved, surface.full.faces, np.zeros(3)))
+        bound = delta * float(np.sum(nb * nc + nc * na + na * nb)) / 6 + float(sums.sum())
+        assert abs(v - v_alone) <= bound, (v - v_alone, bound)
+        folds, folds_alone = surface.fold_check.measure(nodes), alone.fold_check.measure(nodes)
+        assert folds.fraction == folds_alone.fraction == 0.0
+        assert folds.proven and folds_alone.proven
+        # det J's columns sum dB_i x_i (sum |dB_i| <= 2 over a lattice step): both
+        # evaluations err by at most delta in each, at the unshifted nodes' scale, so det J
+        # by at most 3 delta L^2 (L the longest column)
+        samples = np.concatenate([surface.full.vertices, surface.interior])
+        longest = float(np.linalg.norm(surface.lattice.jacobian(samples, nodes), axis=1).max())
+        lattice = surface.lattice
+        step = float(np.linalg.norm(lattice.axes, axis=1).min()) / (max(lattice.shape) - 1)
+        delta = _position_bound(lattice, nodes, 0.0) * 2 / step
+        assert abs(folds.min_det - folds_alone.min_det) <= 3 * delta * longest**2
+
+
+def test_survey_computes_nothing_for_local_bases_or_a_known_volume():
+    surface, nodes = _far_sphere_surface(shape=(4, 4, 4), basis="bspline")
+    with kernels.numpy_path():
+        assert surface.fold_check.survey(nodes, surface.center) is None
+        surface.survey(nodes)
+        assert not surface.level(-1).knows(nodes)  # left to the level's own basis
+    bernstein, nodes = _far_sphere_surface()
+    with kernels.numpy_path():
+        v = bernstein.level(-1).volume(nodes)
+        bernstein.survey(nodes)  # known: the fold check does not run
+        assert bernstein.fold_check._last is None
+        assert bernstein.level(-1).volume(nodes) == v
+
+
+def test_a_solve_ends_the_same_with_or_without_the_one_pass(monkeypatch):
+    """The torus compression on the NumPy path, its full mesh measured through the fold
+    check's pass and through the level's own basis: the same nodes, folds and verdict, and
+    volumes within the rounding of a sum over the faces (64 F eps, relative)."""
+    from isochor.core.scenario.examples import example_scenario
+    from isochor.core.scenario.problem import build
+    from isochor.core.solve.generators import run_to_end
+    from isochor.core.solve.surface import EmbeddedSurface
+
+    passes = []
+    survey = FoldCheck.survey
+
+    def counted(self, nodes, center):
+        points = survey(self, nodes, center)
+        passes.append(points is not None)
+        return points
+
+    with kernels.numpy_path():
+        monkeypatch.setattr(FoldCheck, "survey", counted)
+        one = run_to_end(build(example_scenario("torus-compression")).solve())
+        assert passes == [True]  # the stopping test's; the result read it
+        monkeypatch.setattr(EmbeddedSurface, "survey", lambda self, nodes: None)
+        two = run_to_end(build(example_scenario("torus-compression")).solve())
+    assert one.converged and two.converged
+    assert np.array_equal(one.nodes, two.nodes)
+    assert one.folds.fraction == two.folds.fraction and one.folds.proven == two.folds.proven
+    faces = build(example_scenario("torus-compression")).surface.full.n_faces
+    eps = np.finfo(np.float64).eps
+    assert abs(one.volume_final - two.volume_final) <= 64 * faces * eps * abs(two.volume_final)

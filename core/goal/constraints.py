@@ -110,7 +110,13 @@ class Level:
     renumbered to match): the volume's gathers stay in the caches. Only :meth:`deform`
     gives points, in the mesh's own order."""
 
-    def __init__(self, lattice: Lattice, mesh: TriMesh, center: np.ndarray) -> None:
+    def __init__(
+        self,
+        lattice: Lattice,
+        mesh: TriMesh,
+        center: np.ndarray,
+        rest_volume: float | None = None,
+    ) -> None:
         self.lattice, self.mesh, self.center = lattice, mesh, center
         self.triangles = mesh.n_faces
         self.order: np.ndarray | None = None
@@ -128,8 +134,12 @@ class Level:
         self.volume_op = VolumeOperator(self.faces, mesh.n_vertices)
         # the rest lattice's FFD is the identity: the level's own vertices, not the basis
         # applied to the rest nodes (the same volume to rounding, without a pass of the
-        # basis over the level: the full mesh's costs a first solve 1-3 ms)
-        self.rest_volume = self.volume_op(vertices, center)
+        # basis over the level: the full mesh's costs a first solve 1-3 ms); a volume
+        # measured before (the full mesh's, when its surface was made) is taken as it is
+        # (another pass of the volume: 1 ms of the torus examples' first solve)
+        if rest_volume is None:
+            rest_volume = self.volume_op(vertices, center)
+        self.rest_volume = float(rest_volume)
         del vertices
         self._last: tuple[bytes | None, float] = (None, 0.0)
         self._parts: tuple[list[_Part], np.ndarray] | None = None
@@ -162,6 +172,29 @@ class Level:
             return last[1]
         v = self.volume_op(self.local(nodes))
         self._last = (key, v)
+        return v
+
+    def parameters(self) -> np.ndarray:
+        """(3, m) the lattice coordinates of the level's vertices, in the mesh's order."""
+        uvw = self.basis.uvw
+        if self.order is None:
+            return uvw
+        out = np.empty_like(uvw)
+        out[:, self.order] = uvw
+        return out
+
+    def knows(self, nodes: np.ndarray) -> bool:
+        """Whether the volume at ``nodes`` is at hand (the memo of :meth:`volume`)."""
+        return self._last[0] == np.asarray(nodes, dtype=np.float64).tobytes()
+
+    def volume_of(self, nodes: np.ndarray, points: np.ndarray) -> float:
+        """The volume at ``nodes`` from the level's vertices moved by them, relative to
+        ``center`` ((3, m) in the mesh's order), made elsewhere (the fold check's pass,
+        :meth:`isochor.core.goal.folds.FoldCheck.survey`); :meth:`volume` at the same nodes
+        then reads it."""
+        rows = points if self.order is None else points[:, self.order]
+        v = self.volume_op(np.asarray(rows, dtype=np.float64).T)
+        self._last = (np.asarray(nodes, dtype=np.float64).tobytes(), v)
         return v
 
     def volume_and_gradient(self, nodes: np.ndarray) -> tuple[float, np.ndarray]:

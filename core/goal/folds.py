@@ -153,12 +153,8 @@ def jacobian_determinants(lattice: Lattice, points: np.ndarray, nodes: np.ndarra
 
 
 def _determinants(lattice: Lattice, uvw_t: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """``det J`` at lattice coordinates ``uvw_t`` (3, p), blocked over points.
-
-    Per block, the three parameter derivatives ``dX/du``, ``dX/dv``, ``dX/dw`` are contracted
-    axis by axis (w by a matrix product, then v, then u, each a sum of products in
-    ``einsum``: no (l, m, 3, block) temporaries), point-minor throughout; the world Jacobian
-    is ``J = Ju @ inv(axes).T``, so ``det J = det Ju / det axes`` (one scale at the end)."""
+    """``det J`` at lattice coordinates ``uvw_t`` (3, p), blocked over points (the compiled
+    kernels where they are in use, else :func:`_numpy_determinants`)."""
     l, m, n = lattice.shape
     to_world = np.linalg.inv(lattice.axes).T
     if lattice.local:
@@ -168,10 +164,26 @@ def _determinants(lattice: Lattice, uvw_t: np.ndarray, nodes: np.ndarray) -> np.
     fast = kernels.determinants(uvw_t, grid, to_world)
     if fast is not None:
         return fast
+    return _numpy_determinants(lattice, uvw_t, grid)[0]
+
+
+def _numpy_determinants(
+    lattice: Lattice, uvw_t: np.ndarray, grid: np.ndarray, count: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """``det J`` at lattice coordinates ``uvw_t`` (3, p) of a Bernstein lattice with nodes
+    ``grid`` (l, m, n, 3), and the first ``count`` points moved by them ((3, count): the FFD
+    itself, one more contraction of what det J takes; relative to where ``grid`` is).
+
+    Per block, the three parameter derivatives ``dX/du``, ``dX/dv``, ``dX/dw`` are contracted
+    axis by axis (w by a matrix product, then v, then u, each a sum of products in
+    ``einsum``: no (l, m, 3, block) temporaries), point-minor throughout; the world Jacobian
+    is ``J = Ju @ inv(axes).T``, so ``det J = det Ju / det axes`` (one scale at the end)."""
+    l, m, n = lattice.shape
     # rows (j, i, a): the v axis leads, so that its sums run over whole leading blocks
     x_t = np.ascontiguousarray(grid.transpose(1, 0, 3, 2)).reshape(m * l * 3, n)
     p = uvw_t.shape[1]
     out = np.empty(p)
+    points = np.empty((3, count))
     for s in range(0, p, BLOCK):
         (bu, bv, bw), (dbu, dbv, dbw) = _parameter_bases(lattice, uvw_t[:, s : s + BLOCK])
         width = bu.shape[1]
@@ -180,6 +192,9 @@ def _determinants(lattice: Lattice, uvw_t: np.ndarray, nodes: np.ndarray) -> np.
         z_v = np.einsum("jiap,jp->iap", y_w, bv)  # (l, 3, width)
         z_dv = np.einsum("jiap,jp->iap", y_w, dbv)
         z_dw = np.einsum("jiap,jp->iap", y_dw, bv)
+        if s < count:
+            t = min(s + width, count)
+            np.einsum("iap,ip->ap", z_v[:, :, : t - s], bu[:, : t - s], out=points[:, s:t])
         c0 = np.einsum("iap,ip->ap", z_v, dbu)  # (3, width): dX/du
         c1 = np.einsum("iap,ip->ap", z_dv, bu)
         c2 = np.einsum("iap,ip->ap", z_dw, bu)
@@ -188,8 +203,8 @@ def _determinants(lattice: Lattice, uvw_t: np.ndarray, nodes: np.ndarray) -> np.
             + c0[1] * (c1[2] * c2[0] - c1[0] * c2[2])
             + c0[2] * (c1[0] * c2[1] - c1[1] * c2[0])
         )
-    out *= np.linalg.det(to_world)
-    return out
+    out *= np.linalg.det(np.linalg.inv(lattice.axes))
+    return out, points
 
 
 @dataclass(frozen=True)
@@ -251,6 +266,7 @@ class FoldCheck:
         vertices: np.ndarray,
         interior: np.ndarray,
         faces: np.ndarray | None = None,
+        vertex_parameters: np.ndarray | None = None,
     ) -> None:
         self.lattice = lattice
         vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
@@ -262,8 +278,12 @@ class FoldCheck:
         )
         interior = np.asarray(interior, dtype=np.float64).reshape(-1, 3)
         self.n_vertices, self.n_interior = len(vertices), len(interior)
-        samples = np.concatenate([vertices, interior])
-        self._uvw_t = np.ascontiguousarray(lattice.to_parameters(samples).T)
+        if vertex_parameters is None:  # (3, m) the vertices' lattice coordinates, when known
+            vertex_parameters = lattice.to_parameters(vertices).T
+        inside = lattice.to_parameters(interior).T
+        self._uvw_t = np.ascontiguousarray(np.concatenate([vertex_parameters, inside], axis=1))
+        #: the last nodes measured and det J there (:meth:`survey` fills it too)
+        self._last: tuple[bytes, np.ndarray] | None = None
 
     def determinants(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``det J`` at node positions ``nodes`` (nodes, 3).
@@ -272,8 +292,30 @@ class FoldCheck:
         -------
         (m,) at the vertices, (k,) at the interior points
         """
-        dets = _determinants(self.lattice, self._uvw_t, nodes)
+        key = np.asarray(nodes, dtype=np.float64).tobytes()
+        last = self._last  # one tuple: another thread may replace it, never half of it
+        if last is not None and last[0] == key:
+            dets = last[1]
+        else:
+            dets = _determinants(self.lattice, self._uvw_t, nodes)
+            dets.flags.writeable = False  # kept, and handed out in views
+            self._last = (key, dets)
         return dets[: self.n_vertices], dets[self.n_vertices :]
+
+    def survey(self, nodes: np.ndarray, center: np.ndarray) -> np.ndarray | None:
+        """The model's vertices moved by ``nodes``, relative to ``center`` ((3, m)), from the
+        pass that finds det J at every sample (kept for :meth:`determinants` and
+        :meth:`measure` at the same nodes): on the NumPy path of a Bernstein lattice, where
+        the points cost one more contraction of the same bases (the full mesh's volume
+        without a pass of its own). None elsewhere: nothing is computed."""
+        if self.lattice.local or kernels.active():
+            return None
+        x = np.asarray(nodes, dtype=np.float64).reshape(self.lattice.n_nodes, 3)
+        grid = (x - center).reshape(*self.lattice.shape, 3)  # det J does not see the shift
+        dets, points = _numpy_determinants(self.lattice, self._uvw_t, grid, self.n_vertices)
+        dets.flags.writeable = False
+        self._last = (x.tobytes(), dets)
+        return points
 
     def measure(self, nodes: np.ndarray) -> Folds:
         """How much of the model the FFD with node positions ``nodes`` turns inside out."""

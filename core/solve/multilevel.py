@@ -346,6 +346,8 @@ def solve(
             converged_level = True
             break
         if change < opts.tol_nodes and estimate is not None and estimate <= opts.tol_volume:
+            if not live:  # the full mesh's volume, and its folds for the result
+                surface.survey(x)
             c_full = constraints(top).values(x)
             if np.max(np.abs(c_full)) <= opts.tol_volume:
                 terminal, converged_level = k, True

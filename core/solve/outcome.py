@@ -44,6 +44,7 @@ def outcome(
     and said so in the message: that is the best the lattice can do, not a failure."""
     full = surface.level(-1)
     size = surface.size
+    surface.survey(x)  # the volume and det J at the vertices in one pass, where it can
     v_final = full.volume(x)
     v0 = full.rest_volume
     target = goal.target_ratio * v0
