@@ -75,6 +75,32 @@ def _default_layout():
     settings().clear()
 
 
+@pytest.fixture(autouse=True)
+def _no_unexpected_dialogs(monkeypatch):
+    """A message box no test asked for fails the test instead of waiting for a click that
+    never comes: a modal QMessageBox under Xvfb blocks the test's event loop until CI's
+    time runs out (a fresh-clone run once hung in test_two_quick_drags on a solver error's
+    box). Tests that expect a box patch the same functions themselves, over these."""
+    if _IMPORT_PROBLEM:
+        yield
+        return
+    from PySide6.QtWidgets import QMessageBox
+
+    shown = []
+
+    def unexpected(kind):
+        def show(parent, title, text="", *args, **kwargs):
+            shown.append(f"{kind}: {title}: {text}")
+            return QMessageBox.StandardButton.Cancel
+
+        return staticmethod(show)
+
+    for kind in ("critical", "warning", "information", "question", "about"):
+        monkeypatch.setattr(QMessageBox, kind, unexpected(kind))
+    yield
+    assert not shown, f"the window showed a message box no test expected: {shown}"
+
+
 @pytest.fixture(scope="session")
 def themed_app(qapp):
     from isochor.app.view import style
