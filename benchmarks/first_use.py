@@ -16,6 +16,8 @@
   within noise; a bigger model starts numba once its level pyramid is made (made in a
   forked child, which numba's memory would add to) and waits for it before building the
   problem;
+* the API's first solves on a busy machine when nobody chose BLAS's threads, with the
+  solver's one-thread limit and without it (:mod:`benchmarks.api_threads`);
 * the first solve of the 1.38M and 5.5M armadillos (one and two midpoint subdivisions of
   the 346k one, made into the cache folder) and the command's peak memory per triangle,
   with the forked child that makes its level pyramid (:class:`TreePeak`).
@@ -40,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import BLAS_ENV
+from benchmarks.api_threads import api_threads_rows
 from benchmarks.display import Row, target_table
 from benchmarks.drag_cases import big_armadillo
 from benchmarks.scale import ARMADILLO, ROOT
@@ -338,6 +341,7 @@ def run_first_use(models: Path, repeats: int, quick: bool = False) -> tuple[list
 
     rows += _inside_rows(models, repeats)
     rows.append(_evaluation_row(repeats))
+    rows += api_threads_rows(repeats if not quick else 2)
     reps = max(3, repeats if not quick else 2)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)

@@ -27,7 +27,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 #: what isochor's core imports beyond numpy (Blender ships numpy; PySide6/pyvista are the
 #: editor's, not the add-on's)
-NEEDS = ("scipy", "trimesh", "fast-simplification")
+NEEDS = ("scipy", "trimesh", "fast-simplification", "threadpoolctl")
 #: Blender 4.2 to 5.0 run Python 3.11
 PYTHON = "3.11"
 PLATFORMS = {

@@ -11,13 +11,15 @@ hold one role each. Arrows point down this list, never up (``tests/test_structur
     io/          read, repair, rewrite and write model files (OBJ, PLY, STL, OFF, glTF)
     mesh, lattice, volume, springs, bodies, inside   the paper's geometry (Eq 2-14)
     kernels/     optional compiled (numba) hot loops, NumPy fallback
-    errors, defaults, validate, forked       what every module shares
+    errors, defaults, validate, forked, blas     what every module shares
 
 Modules at this level:
 
 - :mod:`.errors`    IsochorError: the one exception type for user errors
 - :mod:`.defaults`  the tolerances, padding and lattice size every module shares
 - :mod:`.validate`  checks of user values (finite, in range, JSON fields) and input files
+- :mod:`.blas`      the solver's BLAS threads: one while a solve step runs (threadpoolctl),
+  unless the user set them
 - :mod:`.forked`    run a function in a forked child, so that the memory it leaves behind
   (fast-simplification's) goes back to the system when the child ends
 - :mod:`.mesh`      TriMesh, an immutable triangle mesh

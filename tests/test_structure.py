@@ -51,7 +51,7 @@ UNSHIPPED = ("benchmarks", "tests")
 #: layers contract says the same, but its graph builder cannot follow pyproject's
 #: package-dir mapping, so the check stays here.)
 CORE_LAYERS = (
-    {"errors", "forked"},
+    {"errors", "forked", "blas"},
     {"defaults", "validate"},
     {"kernels"},
     {"localbasis"},

@@ -28,7 +28,7 @@ from collections.abc import Generator, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from .. import kernels
+from .. import blas, kernels
 from ..errors import IsochorError
 from ..goal.anchor import held_face
 from ..goal.handles import Handle, HandleSystem, handle_rows
@@ -79,6 +79,7 @@ def live_reach(lattice: Lattice, nodes: np.ndarray, fixed: np.ndarray) -> np.nda
 
 
 @kernels.one_path
+@blas.per_step
 def solve(
     surface: EmbeddedSurface,
     nodes: np.ndarray,

@@ -1,0 +1,115 @@
+"""The solver's BLAS threads: one while a solve computes, unless the user chose.
+
+NumPy's BLAS (OpenBLAS in the wheels) runs every matrix product above a size on all its
+threads, the solver's tall, thin ones too (a fold guard's 2500 samples by 27 nodes by 3
+coordinates, a level's basis). They gain nothing there, and on a busy machine each waits
+for threads that are not scheduled: the torus compression's first solve through the API,
+beside one other busy process on two cores, took 37 to 235 ms with OpenBLAS's two threads
+and 21 ms with one. The command line and the editor set ``OPENBLAS_NUM_THREADS=1`` before
+NumPy loads (:mod:`isochor.app.cli.main`); a program that imported NumPy first (a script
+using the API, Blender with the add-on) gets :func:`one_thread` instead: every BLAS library
+limited to one thread while a solve step runs (:func:`per_step`), and the program's own
+setting back between the steps, when control is its own.
+
+The limit is threadpoolctl's (a dependency; without it nothing is limited and everything
+works as before). It is not applied where the user chose: any of :data:`CHOICES` set in the
+environment, or BLAS already on one thread. Solves on several threads at once share one
+limit: the first to start sets it, the last to leave gives the setting back.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import threading
+from collections.abc import Generator
+from contextlib import contextmanager
+
+#: environment variables by which a user sets BLAS's threads: any of them set, and the
+#: solver leaves the threads as they are
+CHOICES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
+
+
+class _Limit:
+    """The process's one limit: the threadpoolctl controller (made on first use; False
+    where there is nothing to limit), how many steps are inside it and what restores it."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.controller = None
+        self.depth = 0
+        self.held = None
+
+    def _made(self):
+        if self.controller is None:
+            self.controller = False
+            try:
+                from threadpoolctl import ThreadpoolController
+
+                blas = ThreadpoolController().select(user_api="blas")
+                if any(lib.num_threads > 1 for lib in blas.lib_controllers):
+                    self.controller = blas
+            except Exception:  # no threadpoolctl, or a library it cannot read
+                self.controller = False
+        return self.controller
+
+    def enter(self) -> None:
+        with self.lock:
+            if self.depth == 0 and not any(os.environ.get(v) for v in CHOICES):
+                blas = self._made()
+                self.held = blas.limit(limits=1) if blas else None
+            self.depth += 1
+
+    def leave(self) -> None:
+        with self.lock:
+            self.depth -= 1
+            if self.depth == 0 and self.held is not None:
+                self.held.restore_original_limits()
+                self.held = None
+
+    def forget(self) -> None:
+        """Read the libraries and their threads again at the next use (tests)."""
+        with self.lock:
+            self.controller = None
+
+
+_LIMIT = _Limit()
+
+
+@contextmanager
+def one_thread():
+    """BLAS on one thread inside (see the module); nested and concurrent uses share it."""
+    _LIMIT.enter()
+    try:
+        yield
+    finally:
+        _LIMIT.leave()
+
+
+def forget() -> None:
+    """Look at the BLAS libraries and their threads again on the next use."""
+    _LIMIT.forget()
+
+
+def per_step(solver):
+    """Decorate a generator function (a solve): each step of each generator it makes (every
+    ``next``) runs under :func:`one_thread`; the caller's code between the steps does not."""
+
+    @functools.wraps(solver)
+    def run(*args, **kwargs):
+        return _limited(solver(*args, **kwargs))
+
+    return run
+
+
+def _limited(gen: Generator) -> Generator:
+    try:
+        while True:
+            with one_thread():
+                try:
+                    record = next(gen)
+                except StopIteration as stop:
+                    return stop.value
+            yield record
+    finally:
+        gen.close()  # closing this closes the solve at once

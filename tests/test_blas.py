@@ -1,0 +1,109 @@
+"""The solver's BLAS threads (isochor.core.blas): one while a solve step runs in a program
+that did not choose, the program's own setting between the steps and after, untouched
+where the user set them; without threadpoolctl everything works unlimited."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from isochor.core import blas
+from isochor.core.scenario.examples import example_scenario
+from isochor.core.scenario.problem import build
+from isochor.core.solve.generators import run_to_end
+from isochor.core.springs import SpringNetwork
+
+threadpoolctl = pytest.importorskip("threadpoolctl")
+
+
+def _threads() -> list[int]:
+    """Each loaded BLAS library's threads now."""
+    blas_libs = threadpoolctl.ThreadpoolController().select(user_api="blas")
+    return [lib.num_threads for lib in blas_libs.lib_controllers]
+
+
+@pytest.fixture
+def two_threads(monkeypatch):
+    """BLAS on two threads, as NumPy starts in a program that set nothing (skips where a
+    library cannot run two); the environment says nothing about threads."""
+    for name in blas.CHOICES:
+        monkeypatch.delenv(name, raising=False)
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        if min(_threads(), default=0) < 2:
+            pytest.skip("BLAS cannot run two threads here")
+        blas.forget()
+        yield
+    blas.forget()
+
+
+@pytest.fixture
+def seen_in_steps(monkeypatch):
+    """The BLAS threads seen from inside the solve's energy evaluations."""
+    seen: list[list[int]] = []
+    energy = SpringNetwork.energy_and_gradient
+
+    def watched(self, x):
+        if len(seen) < 3:
+            seen.append(_threads())
+        return energy(self, x)
+
+    monkeypatch.setattr(SpringNetwork, "energy_and_gradient", watched)
+    return seen
+
+
+def test_a_solve_step_runs_blas_on_one_thread_and_gives_the_threads_back(
+    two_threads, seen_in_steps
+):
+    run = build(example_scenario("cup-squeeze")).solve()
+    first = next(run)  # the start record: between steps, the program's own threads
+    assert first.step == 0 and min(_threads()) == 2
+    result = run_to_end(run)
+    assert result.converged
+    assert seen_in_steps and all(t == [1] * len(t) for t in seen_in_steps), seen_in_steps
+    assert min(_threads()) == 2  # after the solve: as the program had them
+
+
+def test_a_user_who_set_the_threads_keeps_them(two_threads, seen_in_steps, monkeypatch):
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
+    assert run_to_end(build(example_scenario("cup-squeeze")).solve()).converged
+    assert seen_in_steps and all(min(t) == 2 for t in seen_in_steps), seen_in_steps
+
+
+def test_without_threadpoolctl_nothing_is_limited_and_the_solve_works(
+    two_threads, seen_in_steps, monkeypatch
+):
+    monkeypatch.setitem(sys.modules, "threadpoolctl", None)  # import fails
+    blas.forget()
+    assert run_to_end(build(example_scenario("cup-squeeze")).solve()).converged
+    assert seen_in_steps and all(min(t) == 2 for t in seen_in_steps), seen_in_steps
+
+
+def test_interleaved_solves_share_one_limit_and_leave_none_behind(two_threads):
+    """Two solves driven step by step in turn (a program's two sessions), and a step
+    that raises: the threads are the program's between every step and after."""
+    runs = [build(example_scenario(name)).solve() for name in ("cup-squeeze", "club-bend")]
+    done = [False, False]
+    while not all(done):
+        for i, run in enumerate(runs):
+            if done[i]:
+                continue
+            try:
+                next(run)
+            except StopIteration:
+                done[i] = True
+            assert min(_threads()) == 2
+    with pytest.raises(ValueError), blas.one_thread():
+        assert _threads() == [1] * len(_threads())
+        raise ValueError
+    assert min(_threads()) == 2
+
+
+def test_nested_limits_restore_once_at_the_outermost(two_threads):
+    with blas.one_thread():
+        with blas.one_thread():
+            assert max(_threads()) == 1
+        assert max(_threads()) == 1  # the inner one left: still limited
+    assert min(_threads()) == 2
+    assert np.isfinite(np.ones((64, 64)) @ np.ones(64)).all()
