@@ -13,8 +13,8 @@ three ways, interleaved:
 * **one thread**: ``OPENBLAS_NUM_THREADS=1`` set, as the command line runs (the floor).
 
 Two rows: with one other process keeping one core busy meanwhile (the machine a user has: a
-browser, a build), and without. The NumPy path (``ISOCHOR_NO_JIT=1``): the compiled kernels call no BLAS, and a
-session's first solves run on NumPy while numba loads.
+browser, a build), and without. The NumPy path (``ISOCHOR_NO_JIT=1``): the compiled kernels
+call no BLAS, and a session's first solves run on NumPy while numba loads.
 """
 
 from __future__ import annotations

@@ -3,13 +3,15 @@
 NumPy's BLAS (OpenBLAS in the wheels) runs every matrix product above a size on all its
 threads, the solver's tall, thin ones too (a fold guard's 2500 samples by 27 nodes by 3
 coordinates, a level's basis). They gain nothing there, and on a busy machine each waits
-for threads that are not scheduled: the torus compression's first solve through the API,
-beside one other busy process on two cores, took 37 to 235 ms with OpenBLAS's two threads
-and 21 ms with one. The command line and the editor set ``OPENBLAS_NUM_THREADS=1`` before
-NumPy loads (:mod:`isochor.app.cli.main`); a program that imported NumPy first (a script
-using the API, Blender with the add-on) gets :func:`one_thread` instead: every BLAS library
-limited to one thread while a solve step runs (:func:`per_step`), and the program's own
-setting back between the steps, when control is its own.
+for threads that are not scheduled: the four paper examples' first solves through the
+API, beside one other busy process on two cores, took 230 ms with OpenBLAS's two threads
+and 98 ms limited (106 and 83 ms on an idle machine; :mod:`benchmarks.api_threads`).
+
+The command line and the editor set ``OPENBLAS_NUM_THREADS=1`` before NumPy loads
+(:mod:`isochor.app.cli.main`); a program that imported NumPy first (a script using the
+API, Blender with the add-on) gets :func:`one_thread` instead: every BLAS library limited
+to one thread while a solve step runs (:func:`per_step`), and the program's own setting
+back between the steps, when control is its own.
 
 The limit is threadpoolctl's (a dependency; without it nothing is limited and everything
 works as before). It is not applied where the user chose: any of :data:`CHOICES` set in the
