@@ -1,9 +1,9 @@
 """Build the Isochor extension for Blender (``make addon``): ``dist/isochor-VERSION.zip``.
 
 The add-on's modules and manifest are staged with the wheels Blender lacks: isochor itself
-(built from this tree) and what its core needs beyond the numpy Blender ships (scipy,
-trimesh, fast-simplification), at the versions installed here, for Python 3.11 (Blender 4.2
-to 5.0) on each platform (``--platform``: ``all`` or ``current``). Blender's own extension
+(built from this tree) and what its core needs beyond the numpy Blender ships (scipy, trimesh,
+fast-simplification, threadpoolctl), at the versions installed here, for Python 3.11 (Blender
+4.2 to 5.0) on each platform (``--platform``: ``all`` or ``current``). Blender's own extension
 tool then builds and validates the zip (``blender_ext.py build`` / ``validate`` from the
 ``bpy`` package, or ``blender --command extension ...``).
 

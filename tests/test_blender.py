@@ -643,7 +643,7 @@ def test_the_extension_package_builds_and_installs(tmp_path):
     names = zipfile.ZipFile(package).namelist()
     assert "blender_manifest.toml" in names and "__init__.py" in names
     wheels = {n.split("/")[1].split("-")[0] for n in names if n.startswith("wheels/")}
-    assert wheels == {"isochor", "scipy", "trimesh", "fast_simplification"}
+    assert wheels == {"isochor", "scipy", "trimesh", "fast_simplification", "threadpoolctl"}
     manifest = zipfile.ZipFile(package).read("blender_manifest.toml").decode()
     assert all(f'"./{n}"' in manifest for n in names if n.endswith(".whl"))
     assert "build.py" not in names
