@@ -35,7 +35,7 @@ from .certify import Occupancy, certify, supported
 #: points per block of the blocked determinant evaluation (temporaries stay in cache). A
 #: process's first evaluation finds its temporaries in fresh pages: at 2048 a block the
 #: fold check of the torus compression's 35k samples faulted 1045 pages instead of 1700 at
-#: 4096 (5.1 against 6.3 ms; its first solve 23.1 -> 22.5 ms), at 2.9 against 3.2 ms warm
+#: 4096 (5.1 against 6.3 ms; its first solve 23.1 -> 22.5 ms); warm, 3.2 against 2.9 ms
 BLOCK = 2048
 #: |winding number| above this: inside
 INSIDE = 0.5
