@@ -55,6 +55,14 @@ class _Limit:
                 self.controller = False
         return self.controller
 
+    def wanted(self) -> bool:
+        """Whether a limit would do anything: nobody chose the threads in the environment
+        and a BLAS library runs more than one (the libraries read once)."""
+        if any(os.environ.get(v) for v in CHOICES):
+            return False
+        with self.lock:
+            return bool(self._made())
+
     def enter(self) -> None:
         with self.lock:
             if self.depth == 0 and not any(os.environ.get(v) for v in CHOICES):
@@ -95,7 +103,9 @@ def forget() -> None:
 
 def per_step(solver):
     """Decorate a generator function (a solve): each step of each generator it makes (every
-    ``next``) runs under :func:`one_thread`; the caller's code between the steps does not."""
+    ``next``) runs under :func:`one_thread`; the caller's code between the steps does not.
+    Where no limit is wanted when the solve starts (the command line, the editor: a step
+    costs nothing more), the steps run as they are."""
 
     @functools.wraps(solver)
     def run(*args, **kwargs):
@@ -105,6 +115,8 @@ def per_step(solver):
 
 
 def _limited(gen: Generator) -> Generator:
+    if not _LIMIT.wanted():  # decided when the solve starts: then nothing a step
+        return (yield from gen)
     try:
         while True:
             with one_thread():
