@@ -67,15 +67,21 @@ class _Limit:
         with self.lock:
             if self.depth == 0 and not any(os.environ.get(v) for v in CHOICES):
                 blas = self._made()
-                self.held = blas.limit(limits=1) if blas else None
+                try:
+                    self.held = blas.limit(limits=1) if blas else None
+                except Exception:  # a library that will not be set: leave them all alone
+                    self.controller, self.held = False, None
             self.depth += 1
 
     def leave(self) -> None:
         with self.lock:
             self.depth -= 1
             if self.depth == 0 and self.held is not None:
-                self.held.restore_original_limits()
-                self.held = None
+                held, self.held = self.held, None
+                try:
+                    held.restore_original_limits()
+                except Exception:  # as above: never the solve's failure
+                    self.controller = False
 
     def forget(self) -> None:
         """Read the libraries and their threads again at the next use (tests)."""

@@ -107,3 +107,19 @@ def test_nested_limits_restore_once_at_the_outermost(two_threads):
         assert max(_threads()) == 1  # the inner one left: still limited
     assert min(_threads()) == 2
     assert np.isfinite(np.ones((64, 64)) @ np.ones(64)).all()
+
+
+def test_a_library_that_refuses_the_limit_never_fails_the_solve(two_threads, monkeypatch):
+    """threadpoolctl raising as it sets the threads (a BLAS it cannot drive): the solve
+    converges unlimited, and the limit is not tried again."""
+    calls = []
+
+    def refuse(self, *args, **kwargs):
+        calls.append(1)
+        raise RuntimeError("this BLAS cannot be limited")
+
+    monkeypatch.setattr(threadpoolctl.ThreadpoolController, "limit", refuse)
+    for _ in range(2):
+        assert run_to_end(build(example_scenario("cup-squeeze")).solve()).converged
+    assert calls == [1]
+    assert min(_threads()) == 2
