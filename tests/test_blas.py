@@ -123,3 +123,36 @@ def test_a_library_that_refuses_the_limit_never_fails_the_solve(two_threads, mon
         assert run_to_end(build(example_scenario("cup-squeeze")).solve()).converged
     assert calls == [1]
     assert min(_threads()) == 2
+
+
+@pytest.mark.parametrize("entry", ["isochor.app.cli.main", "isochor.app.cli.launch"])
+def test_the_command_and_the_editor_start_with_one_blas_thread_unless_the_user_chose(entry):
+    """Out of process: the ``isochor`` command's module and the ``isochor-editor`` script's
+    set one thread before NumPy loads; a user's own variable is kept, and the others are
+    then left unset."""
+    import os
+    import subprocess
+
+    code = (
+        f"import os, {entry}, numpy\n"
+        "from threadpoolctl import threadpool_info\n"
+        "blas = [i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas']\n"
+        "print(os.environ.get('OPENBLAS_NUM_THREADS'), min(blas))\n"
+    )
+    clean = {k: v for k, v in os.environ.items() if k not in blas.CHOICES}
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=clean, capture_output=True, text=True, timeout=120
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["1", "1"]
+    chosen = subprocess.run(
+        [sys.executable, "-c", code],
+        env={**clean, "OMP_NUM_THREADS": "2"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert chosen.returncode == 0, chosen.stderr
+    assert chosen.stdout.split()[0] == "None"  # nothing set beside the user's choice
+    if (os.cpu_count() or 1) >= 2:
+        assert chosen.stdout.split()[1] == "2"  # OpenBLAS took the user's OMP_NUM_THREADS

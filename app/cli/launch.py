@@ -13,6 +13,11 @@ import os
 import sys
 from pathlib import Path
 
+from ...core import blas
+
+# the editor's start (the isochor-editor script): one BLAS thread, as the command line
+blas.at_start()
+
 #: Exit codes.
 OK, FAILED = 0, 1
 NO_DISPLAY = FAILED  # like the command line's other environment errors

@@ -49,6 +49,7 @@ from pathlib import Path  # noqa: E402
 from typing import TYPE_CHECKING, Any, NoReturn, TextIO  # noqa: E402
 
 from ... import __version__  # noqa: E402
+from ...core import blas  # noqa: E402  (standard library only)
 from ...core.errors import IsochorError  # noqa: E402
 from ...core.goal.spec import GOAL_FIELDS, Goal  # noqa: E402  (light: no numpy)
 from .console import (  # noqa: E402
@@ -63,11 +64,9 @@ from .console import (  # noqa: E402
 )
 
 # One BLAS thread unless the user says otherwise: the lattice products are small and the
-# solver shares the cores with the window; measured under load, a 125-node basis product
-# took 32 ms with two OpenBLAS threads and 1.4 ms with one. (Nothing imported above
-# imports numpy, so the setting still counts.)
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+# solver shares the cores with the window. (Nothing imported above imports numpy, so the
+# setting still counts.)
+blas.at_start()
 
 if TYPE_CHECKING:
     from ...core.api import Session
