@@ -265,6 +265,15 @@ def _far_sphere_surface(shape=(3, 4, 3), basis="bernstein"):
     return EmbeddedSurface(lattice, [mesh]), nodes
 
 
+def _in_mesh_order(level, points: np.ndarray) -> np.ndarray:
+    """A level's points (in its basis's order) in its mesh's order."""
+    if level.order is None:
+        return points
+    out = np.empty_like(points)
+    out[level.order] = points
+    return out
+
+
 def _position_bound(lattice: Lattice, nodes: np.ndarray, center: np.ndarray) -> float:
     """How far two evaluations of the FFD may put one point apart by rounding: each is a
     convex combination (Bernstein weights >= 0, summing to 1) of the nodes about ``center``,
@@ -274,17 +283,26 @@ def _position_bound(lattice: Lattice, nodes: np.ndarray, center: np.ndarray) -> 
     return 2.0 * (lattice.n_nodes + 30) * eps * float(np.abs(nodes - center).max())
 
 
-def test_survey_moves_the_vertices_as_the_basis_does_and_keeps_det_j_bit_for_bit():
+@pytest.mark.parametrize("reordered", [False, True])
+def test_survey_moves_the_vertices_as_the_basis_does_and_keeps_det_j_bit_for_bit(
+    reordered, monkeypatch
+):
     """The fold check's one pass (the NumPy path): the vertices where the level's own
     basis puts them, to the rounding bound, and det J exactly as the blocked evaluation
-    gives it at the same (shifted) nodes; the determinants are kept for the check."""
+    gives it at the same (shifted) nodes, in the mesh's order also where the full level
+    keeps its vertices in locality order; the determinants are kept for the check."""
+    from isochor.core.goal import constraints
+
+    if reordered:
+        monkeypatch.setattr(constraints, "LOCALITY_TRIANGLES", 1000)
     with kernels.numpy_path():
         surface, nodes = _far_sphere_surface()
         center = surface.center
         check = surface.fold_check
         points = check.survey(nodes, center)
         assert points.shape == (3, surface.full.n_vertices)
-        expected = surface.level(-1).local(nodes)  # the basis on the nodes about center
+        assert (surface.level(-1).order is not None) == reordered
+        expected = _in_mesh_order(surface.level(-1), surface.level(-1).local(nodes))
         gap = float(np.abs(points.T - expected).max())
         assert gap <= _position_bound(surface.lattice, nodes, center), gap
         samples = np.concatenate([surface.full.vertices, surface.interior])
@@ -294,15 +312,23 @@ def test_survey_moves_the_vertices_as_the_basis_does_and_keeps_det_j_bit_for_bit
         assert not at_vertices.flags.writeable  # kept: nobody may change them
 
 
-def test_survey_gives_the_full_volume_and_folds_a_second_surface_measures_alone():
+@pytest.mark.parametrize("reordered", [False, True])
+def test_survey_gives_the_full_volume_and_folds_a_second_surface_measures_alone(
+    reordered, monkeypatch
+):
+    """Also for a level kept in locality order (a big one's: here any, by the limit)."""
+    from isochor.core.goal import constraints
     from isochor.core.solve.surface import EmbeddedSurface
     from isochor.core.volume import face_volumes
 
+    if reordered:
+        monkeypatch.setattr(constraints, "LOCALITY_TRIANGLES", 1000)
     with kernels.numpy_path():
         surface, nodes = _far_sphere_surface()
         alone = EmbeddedSurface(surface.lattice, surface.levels)
         surface.survey(nodes)
         full = surface.level(-1)
+        assert (full.order is not None) == reordered
         assert full.knows(nodes)
         v, v_alone = full.volume(nodes), alone.level(-1).volume(nodes)
         # the bound: every vertex within delta of the other evaluation's, so each face's
