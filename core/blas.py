@@ -9,10 +9,10 @@ and 98 ms limited (106 and 83 ms on an idle machine; :mod:`benchmarks.api_thread
 
 The command line and the editor set ``OPENBLAS_NUM_THREADS=1`` before NumPy loads
 (:func:`at_start`, from :mod:`isochor.app.cli.main` and :mod:`isochor.app.cli.launch`); a
-program that imported NumPy first (a script using the
-API, Blender with the add-on) gets :func:`one_thread` instead: every BLAS library limited
-to one thread while a solve step runs (:func:`per_step`), and the program's own setting
-back between the steps, when control is its own.
+program that imported NumPy first (a script using the API, Blender with the add-on) gets
+:func:`one_thread` instead: every BLAS library limited to one thread while a solve step
+runs (:func:`per_step`), and the program's own setting back between the steps, when
+control is its own.
 
 The limit is threadpoolctl's (a dependency; without it nothing is limited and everything
 works as before). It is not applied where the user chose: any of :data:`CHOICES` set in the
