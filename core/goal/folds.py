@@ -201,11 +201,7 @@ def _numpy_determinants(
         c0 = np.einsum("iap,ip->ap", z_v, dbu)  # (3, width): dX/du
         c1 = np.einsum("iap,ip->ap", z_dv, bu)
         c2 = np.einsum("iap,ip->ap", z_dw, bu)
-        out[s : s + width] = (
-            c0[0] * (c1[1] * c2[2] - c1[2] * c2[1])
-            + c0[1] * (c1[2] * c2[0] - c1[0] * c2[2])
-            + c0[2] * (c1[0] * c2[1] - c1[1] * c2[0])
-        )
+        out[s : s + width] = _triple(c0, c1, c2)
     out *= np.linalg.det(np.linalg.inv(lattice.axes))
     return out, points
 
@@ -217,11 +213,16 @@ def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     )
 
 
+def _triple(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(p,) ``a . (b x c)`` of the (3, p) coordinate rows: the determinant of the columns
+    ``a, b, c``."""
+    bc = _cross(b, c)
+    return a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2]
+
+
 def _det3(j: np.ndarray) -> np.ndarray:
-    """(p,) determinants of the coordinate-major Jacobians ``j[a, b, p]`` (3, 3, p): column
-    0 dotted with the cross product of columns 1 and 2."""
-    c = _cross(j[:, 1], j[:, 2])
-    return j[0, 0] * c[0] + j[1, 0] * c[1] + j[2, 0] * c[2]
+    """(p,) determinants of the coordinate-major Jacobians ``j[a, b, p]`` (3, 3, p)."""
+    return _triple(j[:, 0], j[:, 1], j[:, 2])
 
 
 @dataclass(frozen=True)
