@@ -27,7 +27,7 @@ import numpy as np
 
 from .base import INLINE, KERNEL, njit
 from .basis import _apply_rows, _transpose_rows
-from .volume import _vertex_called
+from .volume import _plus_cross, _vertex_called
 
 #: vertices a step within a range (a multiple of the basis's block: the transpose sums
 #: block by block from the range's start either way, so the sums are the same)
@@ -150,21 +150,12 @@ def _six(points, six, k, o, grad):
     sx, sy, sz = 0.0, 0.0, 0.0
     hx, hy, hz = x[i1] - px, y[i1] - py, z[i1] - pz
     ex, ey, ez = x[i2], y[i2], z[i2]
-    ux, uy, uz = ex - fx, ey - fy, ez - fz
-    sx += hy * uz - hz * uy
-    sy += hz * ux - hx * uz
-    sz += hx * uy - hy * ux
+    sx, sy, sz = _plus_cross(sx, sy, sz, hx, hy, hz, ex - fx, ey - fy, ez - fz)
     hx, hy, hz = x[i3] - px, y[i3] - py, z[i3] - pz
     nx, ny, nz = x[i4], y[i4], z[i4]
-    ux, uy, uz = nx - ex, ny - ey, nz - ez
-    sx += hy * uz - hz * uy
-    sy += hz * ux - hx * uz
-    sz += hx * uy - hy * ux
+    sx, sy, sz = _plus_cross(sx, sy, sz, hx, hy, hz, nx - ex, ny - ey, nz - ez)
     hx, hy, hz = x[i5] - px, y[i5] - py, z[i5] - pz
-    ux, uy, uz = fx - nx, fy - ny, fz - nz
-    sx += hy * uz - hz * uy
-    sy += hz * ux - hx * uz
-    sz += hx * uy - hy * ux
+    sx, sy, sz = _plus_cross(sx, sy, sz, hx, hy, hz, fx - nx, fy - ny, fz - nz)
     grad[0, o] = sx / 6.0
     grad[1, o] = sy / 6.0
     grad[2, o] = sz / 6.0

@@ -133,6 +133,13 @@ def fan_gradient_range(rows, cx, cy, cz, ptr, seq, grad, start, stop, total):
     return total
 
 
+@njit(**_IN)
+def _plus_cross(sx, sy, sz, ax, ay, az, bx, by, bz):
+    """``s + a x b``: the one cross product the fans add, coordinate by coordinate (the
+    fans' walk and the one-pass evaluation's regular vertex alike)."""
+    return sx + (ay * bz - az * by), sy + (az * bx - ax * bz), sz + (ax * by - ay * bx)
+
+
 def _walk(x, y, z, px, py, pz, cx, cy, cz, seq, a, b):
     """6 times the gradient at the vertex ``p`` whose chains are ``seq[a:b]`` (see
     :func:`fan_gradient_range`), of the points ``x, y, z`` about the centre ``c``."""
@@ -155,25 +162,19 @@ def _walk(x, y, z, px, py, pz, cx, cy, cz, seq, a, b):
                 t += 1
                 nx, ny, nz = x[q], y[q], z[q]
                 ux, uy, uz = nx - ex, ny - ey, nz - ez
-                sx += hy * uz - hz * uy
-                sy += hz * ux - hx * uz
-                sz += hx * uy - hy * ux
+                sx, sy, sz = _plus_cross(sx, sy, sz, hx, hy, hz, ux, uy, uz)
                 ex, ey, ez = nx, ny, nz
                 last = q
             else:  # the chain's last term alone: d_even x d_odd
                 ax, ay, az = ex - px, ey - py, ez - pz
-                sx += ay * hz - az * hy
-                sy += az * hx - ax * hz
-                sz += ax * hy - ay * hx
+                sx, sy, sz = _plus_cross(sx, sy, sz, ax, ay, az, hx, hy, hz)
                 ex, ey, ez = x[r], y[r], z[r]
                 last = r
                 break
         if last != first:  # an open chain: (o - c) x (a_e - a_0)
             dx, dy, dz = ex - x[first], ey - y[first], ez - z[first]
             ox, oy, oz = px - cx, py - cy, pz - cz
-            sx += oy * dz - oz * dy
-            sy += oz * dx - ox * dz
-            sz += ox * dy - oy * dx
+            sx, sy, sz = _plus_cross(sx, sy, sz, ox, oy, oz, dx, dy, dz)
     return sx, sy, sz
 
 
