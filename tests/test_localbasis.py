@@ -546,3 +546,74 @@ def test_the_command_line_solves_on_another_basis_and_names_a_bad_one(tmp_path, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--outside: needs a local basis" in err[0], err
     assert not report.exists() and not out.exists()
+
+
+def _layer_pushed(n: int, push: float):
+    """A uv sphere (8k vertices) in an n^3 B-spline lattice, the bottom layer pinned and the
+    whole top layer pushed down ``push`` of the lattice's height (fixed there)."""
+    trimesh = pytest.importorskip("trimesh")
+    from isochor import Session
+
+    s = Session(trimesh.creation.uv_sphere(count=(64, 64)), lattice=(n, n, n), basis="bspline")
+    lattice = s.lattice
+    row = lattice.grid_parameters()[:, 1]
+    s.fixed[row == 0] = True
+    top = row == row.max()
+    s.nodes[top, 1] -= push * np.ptp(lattice.rest_nodes[:, 1])
+    s.fixed[top] = True
+    return s
+
+
+def test_a_whole_layer_pushed_through_a_dense_lattice_converges_unfolded():
+    """The top layer of a 16^3 lattice pushed down a quarter of the height (through three
+    layers of free nodes). The fold guard's samples come from a level with at least
+    ``PROBE_PER_CELL`` triangles a cell: with the old 1000 (3175 samples for 3375 cells)
+    det J fell from the guard's margin to -0.025 between them and the result was folded."""
+    from isochor.core.solve.surface import PROBE_PER_CELL
+
+    s = _layer_pushed(16, 0.25)
+    surface = s.problem.surface
+    assert surface.lattice_cells == 15**3
+    assert surface.fold_guard(0.05).n_points >= PROBE_PER_CELL * 15**3 / 2  # a vertex a cell
+    start = surface.springs.energy(s.nodes) / surface.size**2
+    fixed_rows = s.fixed.any(axis=1)
+    pushed = s.nodes[fixed_rows].copy()
+    result = s.solve()
+    assert result.converged, result.message
+    assert abs(result.rel_volume_error) <= s.problem.options.tol_volume
+    assert not result.folds.folded and result.folds.min_det > 0
+    assert np.array_equal(result.nodes[fixed_rows], pushed)
+    assert result.energy < start  # the free nodes took up the push
+
+
+@pytest.mark.parametrize("kinds", [("bspline",) * 3, ("linear", "cardinal", "catmull-rom")])
+def test_compiled_determinants_agree_with_the_numpy_path_to_their_rounding_bound(kinds):
+    """The kernel sums the tensor product's derivatives separably (w, then v, then u), the
+    NumPy path the 64 products at once: both are sums of 64 products of three weights and a
+    displacement, so each entry of ``ju`` differs by at most ``2 * 12 u * S`` (``S`` the sum
+    of the products' magnitudes, 12 roundings on the longer path: 3 products, 4 + 4 + 4
+    additions; u = 2^-53) and det J, to first order, by ``sum |cof| |dJ|`` plus the
+    rounding of the determinant itself (at most ``16 u`` of the columns' lengths' product,
+    Hadamard)."""
+    if not kernels.ready(120):
+        pytest.skip(f"compiled kernels not available: {kernels.status()}")
+    rng = np.random.default_rng(17)
+    lattice = Lattice((9, 5, 7), (0, 0, 0), np.diag([2.0, 1.0, 1.5]), kinds)
+    uvw_t = np.ascontiguousarray(rng.uniform(-0.2, 1.2, (3, 3000)))
+    disp = 0.05 * rng.standard_normal((lattice.n_nodes, 3))
+    to_world = np.linalg.inv(lattice.axes).T
+    fast, squares = kernels.local_determinants(
+        uvw_t, lb.codes(kinds), disp, lattice.shape, to_world, frobenius=True
+    )
+    with kernels.numpy_path():
+        slow = lb.determinants(kinds, lattice.shape, uvw_t, disp, to_world)
+    jac = lb.world_jacobians(kinds, lattice.shape, uvw_t, disp, to_world)
+    rows, _, deriv = lb.windows(kinds, lattice.shape, uvw_t)
+    s = np.einsum("epk,pka->epa", np.abs(deriv), np.abs(disp)[rows])  # (e, p, a)
+    u = np.finfo(float).eps / 2
+    d_jac = 24 * u * np.einsum("epa,eb->pab", s, np.abs(to_world))  # (p, a, b)
+    cof = np.linalg.det(jac)[:, None, None] * np.linalg.inv(jac).transpose(0, 2, 1)
+    columns = np.prod(np.linalg.norm(jac, axis=1), axis=1)
+    bound = np.sum(np.abs(cof) * d_jac, axis=(1, 2)) + 16 * u * columns
+    assert np.all(np.abs(fast - slow) <= bound)
+    assert np.allclose(squares, np.sum(jac * jac, axis=(1, 2)), rtol=1e-13)

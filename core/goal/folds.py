@@ -411,6 +411,15 @@ class SparseGradients:
         return sp.csr_matrix((v, (r, c)), shape=(a, 3 * self.g[0].shape[1]))
 
 
+def by_cell(shape: tuple[int, int, int], uvw_t: np.ndarray) -> np.ndarray:
+    """(p,) the order of the points at lattice coordinates ``uvw_t`` (3, p) that visits a
+    local basis's lattice cell by cell (u slowest, as the nodes are stored): consecutive
+    points then share their 4x4x4 window of nodes (det J of the 16^3 lattice's windows 1.5x
+    faster than in a mesh's own order)."""
+    cell = [np.clip(np.floor(uvw_t[a] * max(c - 1, 1)), -1, c) for a, c in enumerate(shape)]
+    return np.lexsort((cell[2], cell[1], cell[0]))
+
+
 class FoldGuard:
     """A penalty that keeps ``det J`` above a margin at fixed sample points.
 
@@ -450,7 +459,16 @@ class FoldGuard:
         self.n_points = k = len(points)
         nodes = lattice.n_nodes
         inv = np.linalg.inv(lattice.axes)  # du_c / dx_b = inv[b, c]
-        uvw_t = np.ascontiguousarray(lattice.to_parameters(points).T)
+        uvw_t = lattice.to_parameters(points).T
+        #: a local basis's samples are kept by cell (each cell's 4x4x4 nodes read once,
+        #: from the cache): where each of the given points went, else None
+        self._place = None
+        if lattice.local and k:
+            order = by_cell(lattice.shape, uvw_t)
+            uvw_t = uvw_t[:, order]
+            self._place = np.empty(k, dtype=np.intp)
+            self._place[order] = np.arange(k)
+        uvw_t = np.ascontiguousarray(uvw_t)
         #: (3, k, 3) the samples' lattice coordinates and inv(axes).T: det J by the kernels
         self._uvw_t, self._to_world = uvw_t, inv.T
         #: the last full evaluation (see :meth:`_candidates`): its nodes, each sample's
@@ -498,8 +516,10 @@ class FoldGuard:
         return np.ascontiguousarray(cols.reshape(3, -1, 3).transpose(2, 0, 1))
 
     def determinants(self, nodes: np.ndarray) -> np.ndarray:
-        """(k,) ``det J`` at the sample points for node positions ``nodes`` (nodes, 3)."""
-        return self._evaluate(nodes)[0]
+        """(k,) ``det J`` at the sample points (in the order given) for node positions
+        ``nodes`` (nodes, 3)."""
+        dets = self._evaluate(nodes)[0]
+        return dets if self._place is None else dets[self._place]
 
     def _candidates(self, nodes: np.ndarray) -> np.ndarray | None:
         """The samples that may be within the margin at ``nodes``, proven from the last full

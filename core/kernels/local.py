@@ -2,8 +2,9 @@
 
 Per point, each axis's window is evaluated (:func:`_window`: four node indices clamped to
 the axis and Blender's four weights, the formula of :func:`core.localbasis.key_weights`,
-and with ``deriv`` their derivatives along the axis), then the at most 4 x 4 x 4 nodes are
-visited (zero weights skipped: the linear basis has two per axis):
+and with ``deriv`` their derivatives along the axis), then the 4 x 4 x 4 nodes are
+visited; the apply and det J sum the tensor product separably (along w, then v, then u),
+the transpose skips zero weights (the linear basis has two per axis):
 
 - :func:`local_apply_range`: ``out = p + sum w D`` (D the (l, m, n, 3) displacements);
 - :func:`local_transpose_range`: ``acc[node] += w g`` into the caller's accumulator, one per
@@ -79,7 +80,9 @@ def _window(code, count, u, index, w, dw, deriv):
 
 @njit(**KERNEL)
 def local_apply_range(uvw, points, codes, d, out, start, stop):
-    """``out[:, start:stop]``: the deformed points ``start..stop`` (rows x, y, z)."""
+    """``out[:, start:stop]``: the deformed points ``start..stop`` (rows x, y, z), the
+    tensor product summed separably (along w, then v, then u: 252 multiply-adds a point
+    instead of 320, without a test per weight)."""
     l, m, n = d.shape[0], d.shape[1], d.shape[2]
     iu, iv, iw = np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4, np.int64)
     wu, wv, ww = np.empty(4), np.empty(4), np.empty(4)
@@ -90,20 +93,24 @@ def local_apply_range(uvw, points, codes, d, out, start, stop):
         _window(codes[2], n, uvw[2, q], iw, ww, scratch, False)
         sx, sy, sz = 0.0, 0.0, 0.0
         for a in range(4):
-            if wu[a] == 0.0:
-                continue
+            rx, ry, rz = 0.0, 0.0, 0.0
             for b in range(4):
-                wab = wu[a] * wv[b]
-                if wab == 0.0:
-                    continue
+                row = d[iu[a], iv[b]]
+                px, py, pz = 0.0, 0.0, 0.0
                 for c in range(4):
-                    wt = wab * ww[c]
-                    if wt == 0.0:
-                        continue
-                    dd = d[iu[a], iv[b], iw[c]]
-                    sx += wt * dd[0]
-                    sy += wt * dd[1]
-                    sz += wt * dd[2]
+                    dd = row[iw[c]]
+                    wc = ww[c]
+                    px += wc * dd[0]
+                    py += wc * dd[1]
+                    pz += wc * dd[2]
+                wb = wv[b]
+                rx += wb * px
+                ry += wb * py
+                rz += wb * pz
+            wa = wu[a]
+            sx += wa * rx
+            sy += wa * ry
+            sz += wa * rz
         out[0, q] = points[0, q] + sx
         out[1, q] = points[1, q] + sy
         out[2, q] = points[2, q] + sz
@@ -142,7 +149,12 @@ def local_transpose_range(uvw, codes, g, l, m, n, start, stop, acc):
 @njit(**KERNEL)
 def local_determinant_range(uvw, codes, d, to_world, out, frobenius, start, stop):
     """``out[start:stop]``: det J at the points ``start..stop``; unless ``frobenius`` is
-    empty, ``frobenius[start:stop]`` gets ``|J|_F^2`` too."""
+    empty, ``frobenius[start:stop]`` gets ``|J|_F^2`` too.
+
+    The three derivatives of the tensor product are summed separably, one axis at a time
+    (w innermost, then v, then u): the 4 x 4 window's sums along w with the weights and
+    their derivatives (2 x 3 numbers per row), those along v (3 x 3 per layer), then along
+    u: 564 multiply-adds a point instead of the 960 of the 64 products one by one."""
     squares = len(frobenius) > 0
     l, m, n = d.shape[0], d.shape[1], d.shape[2]
     iu, iv, iw = np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4, np.int64)
@@ -156,18 +168,45 @@ def local_determinant_range(uvw, codes, d, to_world, out, frobenius, start, stop
         _window(codes[2], n, uvw[2, q], iw, ww, dw, True)
         ju[:, :] = 0.0
         for a in range(4):
+            # along v of this u layer: r0 = sum wv P, r1 = sum dv P, r2 = sum wv Q
+            r00, r01, r02 = 0.0, 0.0, 0.0
+            r10, r11, r12 = 0.0, 0.0, 0.0
+            r20, r21, r22 = 0.0, 0.0, 0.0
             for b in range(4):
+                row = d[iu[a], iv[b]]
+                # along w: P = sum ww D, Q = sum dw D
+                p0, p1, p2 = 0.0, 0.0, 0.0
+                q0, q1, q2 = 0.0, 0.0, 0.0
                 for c in range(4):
-                    e0 = du[a] * wv[b] * ww[c]
-                    e1 = wu[a] * dv[b] * ww[c]
-                    e2 = wu[a] * wv[b] * dw[c]
-                    if e0 == 0.0 and e1 == 0.0 and e2 == 0.0:
-                        continue
-                    dd = d[iu[a], iv[b], iw[c]]
-                    for s in range(3):
-                        ju[0, s] += e0 * dd[s]
-                        ju[1, s] += e1 * dd[s]
-                        ju[2, s] += e2 * dd[s]
+                    dd = row[iw[c]]
+                    x0, x1, x2 = dd[0], dd[1], dd[2]
+                    wc, dc = ww[c], dw[c]
+                    p0 += wc * x0
+                    p1 += wc * x1
+                    p2 += wc * x2
+                    q0 += dc * x0
+                    q1 += dc * x1
+                    q2 += dc * x2
+                wb, db = wv[b], dv[b]
+                r00 += wb * p0
+                r01 += wb * p1
+                r02 += wb * p2
+                r10 += db * p0
+                r11 += db * p1
+                r12 += db * p2
+                r20 += wb * q0
+                r21 += wb * q1
+                r22 += wb * q2
+            wa, da = wu[a], du[a]
+            ju[0, 0] += da * r00
+            ju[0, 1] += da * r01
+            ju[0, 2] += da * r02
+            ju[1, 0] += wa * r10
+            ju[1, 1] += wa * r11
+            ju[1, 2] += wa * r12
+            ju[2, 0] += wa * r20
+            ju[2, 1] += wa * r21
+            ju[2, 2] += wa * r22
         # J[s, t] = delta + sum_e ju[e, s] to_world[e, t]
         for s in range(3):
             for t in range(3):

@@ -31,6 +31,9 @@ FOLD_MARGIN = 0.05
 #: ... with this weight: a sample point at det J = 0 costs FOLD_WEIGHT / samples (the spring
 #: energy of a bent model is 0.01 to 1)
 FOLD_WEIGHT = 100
+#: the fold guard's samples are taken on the coarsest level with at least this many
+#: triangles per cell of a local basis's lattice
+PROBE_PER_CELL = 2
 
 
 @dataclass(eq=False)
@@ -104,7 +107,16 @@ class EmbeddedSurface:
     @cached_property
     def _probe(self) -> TriMesh:
         """The coarsest level with at least 1000 triangles: where samples are taken."""
-        return next((m for m in self.levels if m.n_faces >= 1000), self.full)
+        least = max(1000, PROBE_PER_CELL * self.lattice_cells)
+        return next((m for m in self.levels if m.n_faces >= least), self.full)
+
+    @cached_property
+    def lattice_cells(self) -> int:
+        """Cells of a local basis's lattice (each point moves with its own window); 0 for
+        the Bernstein basis, whose every node moves every point."""
+        if not self.lattice.local:
+            return 0
+        return int(np.prod([max(c - 1, 1) for c in self.lattice.shape]))
 
     @cached_property
     def interior(self) -> np.ndarray:
