@@ -54,6 +54,11 @@ from .solve.records import Progress, SolveResult
 
 Node = tuple[int, int, int]
 
+#: a Session solve after an edit that moved no node more than this share of the object
+#: size from the last converged result (same pins, goal and handles) is solved as a drag's
+#: release is (:meth:`Session._small_edit`)
+SMALL_EDIT = 0.05
+
 
 @dataclass(frozen=True)
 class Deformed:
@@ -206,6 +211,8 @@ class Session:
         #: keyed poses (see :meth:`key`) and how :meth:`frames` plays them
         self.poses: list[Pose] = list(scenario.timeline.poses) if scenario.timeline else []
         self.result: SolveResult | None = None
+        #: what the last converged solve held (fixed coordinates, goal, handles), or None
+        self._solved: tuple | None = None
 
     # -- the lattice ------------------------------------------------------------------------
     @property
@@ -337,15 +344,29 @@ class Session:
         """Solve step by step: yields a :class:`~isochor.core.solve.records.Progress` record per
         inner step and level, returns the result; the session's nodes become the result's.
         Closing the generator stops the solve and keeps the nodes as they were."""
-        run = self.problem.solve(
-            self._checked_nodes(), self.fixed, goal=self.goal, handles=self.handles
-        )
+        nodes, goal = self._checked_nodes(), self.goal
+        held = tuple((tuple(h.at), tuple(h.to)) for h in self.handles)
+        edit = (self.fixed.tobytes(), goal, held)
+        near = self._small_edit(nodes, edit)
+        run = self.problem.solve(nodes, self.fixed, goal=goal, handles=self.handles, near=near)
         if self.progress is not None:
             run = _reporting(run, self.progress)
         result = yield from run
         self.nodes = np.array(result.nodes)
-        self.result = result
+        self.result, self._solved = result, (edit if result.converged else None)
         return result
+
+    def _small_edit(self, nodes: np.ndarray, edit: tuple) -> bool:
+        """Whether this solve is a small edit of the last one: that one converged with the
+        same fixed coordinates, goal and handles, and no node moved more than
+        :data:`SMALL_EDIT` of the object size since. It is then solved as a drag's release
+        is (``near``: it starts on the coarsest level that agrees with the full mesh there,
+        with the least-squares multiplier, and keeps the last solve's factored curvature
+        while the nodes stay near it); any other solve starts afresh."""
+        last = self.result
+        if last is None or self._solved != edit:
+            return False
+        return float(np.abs(nodes - last.nodes).max()) <= SMALL_EDIT * self.problem.surface.size
 
     def solve(self) -> SolveResult:
         """Solve to the end from the current nodes; the nodes become the result's."""

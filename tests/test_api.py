@@ -286,3 +286,35 @@ def test_the_sessions_goal_attributes_are_the_goals_keywords_with_their_types():
     assert {f.keyword: getattr(session, f.keyword) for f in GOAL_FIELDS} == {
         f.keyword: f.default for f in GOAL_FIELDS
     }
+
+
+@pytest.mark.parametrize(
+    "basis, shape, node",
+    [
+        ("bspline", (6, 6, 6), (5, 5, 5)),  # a corner
+        ("bspline", (6, 6, 6), (2, 5, 3)),  # the middle of a face
+        ("bernstein", (4, 3, 3), (3, 2, 2)),
+        ("bernstein", (4, 3, 3), (3, 1, 1)),
+    ],
+)
+def test_a_small_edit_after_a_solve_reaches_a_fresh_solves_nodes(basis, shape, node):
+    """A Session solve after a 1 % nudge of a moved node (same pins and goal) starts as a
+    drag's release does (near the last result, its curvature kept); it meets the volume and
+    reaches the nodes a fresh solve of the same edit reaches, to the solver's node
+    tolerance (``tol_nodes`` of the object size: what the multi-level loop calls the same
+    nodes)."""
+    from isochor.core.solve.generators import run_to_end
+
+    s = isochor.Session(trimesh.creation.icosphere(3), lattice=shape, basis=basis)
+    s.fixed[s.lattice.grid_parameters()[:, 1] == 0] = True
+    s.move(node, by=(0, 0.15 * s.lattice.size, 0))
+    assert s.solve().converged
+    s.move(node, by=(0.01 * s.lattice.size, 0, 0))
+    start = s.nodes.copy()
+    again = s.solve()
+    fresh = run_to_end(s.problem.solve(start, s.fixed, goal=s.goal))
+    assert again.converged and fresh.converged, (again.message, fresh.message)
+    tol = s.problem.options
+    assert abs(again.rel_volume_error) <= tol.tol_volume
+    size = s.problem.surface.size
+    assert np.abs(again.nodes - fresh.nodes).max() <= tol.tol_nodes * size
