@@ -375,3 +375,40 @@ def test_inexact_inner_runs_save_steps_and_a_converged_level_ends_at_gtol():
     assert loose((0.0, -0.3)) == loose((0.0, 0.3))
     assert loose((0.0, 10 * tol)) == 0.0  # near the constraint: gtol alone
     assert _loose(Problem(), np.zeros(3), 100.0, tol, 0.0) is None
+
+
+def test_a_run_that_renews_its_preconditioner_converges_where_the_plain_one_crawls():
+    """A badly conditioned quadratic ``y^T A y / 2 - b^T y`` (eigenvalues 1 to 1e6, 400
+    variables) started with a preconditioner that fits a different matrix: after
+    ``PRECONDITIONED_STEPS`` steps a run given ``renew`` takes the one made at its current
+    point (here ``A^-1`` itself) and converges at once, to the minimiser ``A^-1 b`` within
+    ``sqrt(n) gtol / lambda_min`` (``|g|_2 <= sqrt(n) max |g|``); without it the run goes
+    on with the scaled identity and is still going after as many steps again."""
+    from isochor.core.solve.generators import run_to_end
+    from isochor.core.solve.lbfgs import PRECONDITIONED_STEPS, lbfgs
+
+    rng = np.random.default_rng(5)
+    q, _ = np.linalg.qr(rng.normal(size=(400, 400)))
+    eig = np.logspace(0, 6, 400)
+    a = (q * eig) @ q.T
+    b = rng.normal(size=400)
+    wrong = (q * np.logspace(6, 0, 400) ** -1) @ q.T  # the spectrum reversed
+    exact = np.linalg.inv(a)
+    seen = []
+
+    def fun(y):
+        g = a @ y - b
+        return 0.5 * float(y @ (a @ y)) - float(b @ y), g, (0.0, 0.0)
+
+    def renew(y):
+        seen.append(y.copy())
+        return lambda v: exact @ v
+
+    gtol, most = 1e-6, 2 * PRECONDITIONED_STEPS
+    kw = {"gtol": gtol, "max_iter": most, "h0": lambda v: wrong @ v}
+    y, steps, ok = run_to_end(lbfgs(fun, np.zeros(400), renew=renew, **kw))
+    assert ok and PRECONDITIONED_STEPS <= steps < most
+    assert len(seen) == 1 and np.abs(a @ seen[0] - b).max() > gtol  # renewed mid-run
+    assert np.abs(y - exact @ b).max() <= np.sqrt(400) * gtol / eig[0]
+    _, plain_steps, plain_ok = run_to_end(lbfgs(fun, np.zeros(400), **kw))
+    assert not plain_ok and plain_steps == most

@@ -24,7 +24,10 @@ from .linesearch import line_search
 #: the plain scaled identity (keeping its correction pairs): the preconditioner is the
 #: curvature where the run started, and where the fold guard takes hold the curvature
 #: changes so much that the fixed one slows the run down (the kitten bend: 251 steps
-#: instead of 82; the cow shrunk to 0.2: 500 without converging instead of 407)
+#: instead of 82; the cow shrunk to 0.2: 500 without converging instead of 407). A run
+#: that can renew its preconditioner (a dense local lattice's sparse one) takes it again
+#: at its current point instead: plain L-BFGS on 10k variables crawls (the whole top layer
+#: of a 16^3 lattice pushed down: runs of 500 steps without converging)
 PRECONDITIONED_STEPS = 40
 
 
@@ -40,6 +43,7 @@ def lbfgs(
     memory: int = 12,
     h0: Callable[[np.ndarray], np.ndarray] | None = None,
     loose: Callable[[tuple[float, float]], float] | None = None,
+    renew: Callable[[np.ndarray], Callable[[np.ndarray], np.ndarray] | None] | None = None,
 ) -> Generator[tuple[np.ndarray, tuple[float, float]], None, tuple[np.ndarray, int, bool]]:
     """Minimise ``fun`` from ``x0``; yields ``(x, aux)`` after every accepted step.
 
@@ -48,7 +52,10 @@ def lbfgs(
     scaled identity of the two-loop recursion, and the first step is ``-h0(g)`` tried
     whole, like every quasi-Newton step. ``loose``, when given, is a second stopping
     tolerance on ``max |grad|`` taken from the iterate's ``aux`` (the inexact inner runs of
-    :func:`isochor.core.solve.solver.augmented_lagrangian`).
+    :func:`isochor.core.solve.solver.augmented_lagrangian`). ``renew``, when given, makes
+    the preconditioner again at the current ``x`` every :data:`PRECONDITIONED_STEPS` steps
+    of a run that has not converged (None from it: the scaled identity from then on),
+    instead of going on with the scaled identity.
     """
     cache: dict[bytes, tuple[float, np.ndarray, tuple[float, float]]] = {}
 
@@ -65,8 +72,8 @@ def lbfgs(
     pairs = Pairs(memory, len(x))
     f_old = None
     for it in range(max_iter):
-        if it == PRECONDITIONED_STEPS:
-            h0 = None  # see PRECONDITIONED_STEPS
+        if it and it % PRECONDITIONED_STEPS == 0 and h0 is not None:
+            h0 = None if renew is None else renew(x)  # see PRECONDITIONED_STEPS
         d, g_max, slope = _direction(pairs, g, h0)
         if not np.isfinite(g_max):
             raise FloatingPointError("the objective gradient is not finite")

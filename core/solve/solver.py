@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Generator
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 import scipy.sparse as sp
@@ -135,6 +135,19 @@ class Curvatures:
             taken = (np.array(y), curvature)
             self._taken = taken
         return taken[1]
+
+    def renew(self, y: np.ndarray, nodes) -> Curvature | None:
+        """A sparse curvature taken again at ``y`` (``nodes()`` their node positions), or
+        None where the curvature is dense or not taken yet (it stays as it is)."""
+        taken = self._taken
+        if taken is None or not taken[1].sparse:
+            return None
+        h = self.coords.restrict(self.hessian(nodes()))
+        curvature = Curvature(h, self._order, self.coords.whole_nodes)
+        if not curvature.ok:
+            return None
+        self._taken = (np.array(y), curvature)
+        return curvature
 
 
 @dataclass(frozen=True)
@@ -301,6 +314,19 @@ class LevelProblem:
         pre = self._taken(y)
         return 0.0 if pre is None else pre.stiffness()
 
+    def renewed(self, y: np.ndarray, sigma: float):
+        """``v -> M^-1 v`` made again at ``y`` (the shared curvature taken there) where the
+        curvature is sparse (:meth:`Curvatures.renew`), else None: an L-BFGS run that is
+        still going after :data:`isochor.core.solve.lbfgs.PRECONDITIONED_STEPS` steps
+        takes it instead of going on with the scaled identity."""
+        if self.curvatures is None:
+            return None
+        curvature = self.curvatures.renew(y, lambda: self.to_nodes(y))
+        if curvature is None:
+            return None
+        pre = self._preconditioner = Preconditioner(curvature, self.terms(y)[3])
+        return pre.at(sigma)
+
     def _taken(self, y: np.ndarray) -> Preconditioner | None:
         """The :class:`Preconditioner` for ``y``: made again when the shared curvature was."""
         if self.curvatures is None:
@@ -436,6 +462,7 @@ def augmented_lagrangian(
             memory=options.memory,
             h0=problem.preconditioner(y, sigma) if options.precondition else None,
             loose=_loose(problem, y, sigma, tol, options.inexact),
+            renew=partial(problem.renewed, sigma=sigma) if options.precondition else None,
         )
 
         def iterate(record, outer=outer, sigma=sigma, lam=lam):
