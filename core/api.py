@@ -347,13 +347,21 @@ class Session:
         nodes, goal = self._checked_nodes(), self.goal
         held = tuple((tuple(h.at), tuple(h.to)) for h in self.handles)
         edit = (self.fixed.tobytes(), goal, held)
-        near = self._small_edit(nodes, edit)
-        run = self.problem.solve(nodes, self.fixed, goal=goal, handles=self.handles, near=near)
+        run = self._solving(nodes, goal, self._small_edit(nodes, edit))
         if self.progress is not None:
             run = _reporting(run, self.progress)
         result = yield from run
         self.nodes = np.array(result.nodes)
         self.result, self._solved = result, (edit if result.converged else None)
+        return result
+
+    def _solving(self, nodes: np.ndarray, goal: Goal, near: bool):
+        """The solve of the current edit: ``near`` the last result for a small edit, and a
+        whole solve from the nodes where that one does not converge."""
+        fixed, handles = self.fixed, self.handles
+        result = yield from self.problem.solve(nodes, fixed, goal=goal, handles=handles, near=near)
+        if near and not result.converged:
+            result = yield from self.problem.solve(nodes, fixed, goal=goal, handles=handles)
         return result
 
     def _small_edit(self, nodes: np.ndarray, edit: tuple) -> bool:
@@ -464,8 +472,12 @@ def _reporting(run, progress: ProgressCallback):
     """The solve ``run``, telling ``progress`` ``("solve", fraction)`` at every record
     (:attr:`~isochor.core.solve.records.Progress.fraction`) and 1 at its end."""
 
+    high = 0.0  # (a small edit's whole solve after its near one starts again from 0)
+
     def tell(record: Progress) -> Progress:
-        progress("solve", record.fraction)
+        nonlocal high
+        high = max(high, record.fraction)
+        progress("solve", high)
         return record
 
     progress("solve", 0.0)

@@ -318,3 +318,40 @@ def test_a_small_edit_after_a_solve_reaches_a_fresh_solves_nodes(basis, shape, n
     assert abs(again.rel_volume_error) <= tol.tol_volume
     size = s.problem.surface.size
     assert np.abs(again.nodes - fresh.nodes).max() <= tol.tol_nodes * size
+
+
+def test_a_small_edit_whose_near_solve_misses_is_solved_whole():
+    """Where the solve near the last result does not converge, the Session solves the edit
+    whole from the same nodes (a wrapper makes the near one report a miss)."""
+    from dataclasses import replace
+
+    class NearMisses:
+        def __init__(self, problem):
+            self.problem, self.calls = problem, []
+
+        def __getattr__(self, name):
+            return getattr(self.problem, name)
+
+        def solve(self, *args, near=False, **kw):
+            self.calls.append(near)
+            run = self.problem.solve(*args, near=near, **kw)
+            if not near:
+                return run
+
+            def missed():
+                return replace((yield from run), converged=False)
+
+            return missed()
+
+    s = isochor.Session(trimesh.creation.icosphere(3), lattice=(6, 6, 6), basis="bspline")
+    s.fixed[s.lattice.grid_parameters()[:, 1] == 0] = True
+    s.move((5, 5, 5), by=(0, 0.15 * s.lattice.size, 0))
+    assert s.solve().converged
+    s.problem = wrapped = NearMisses(s.problem)
+    s.move((5, 5, 5), by=(0.01 * s.lattice.size, 0, 0))
+    seen = []
+    s.progress = lambda stage, f: seen.append(f)
+    result = s.solve()
+    assert wrapped.calls == [True, False]
+    assert result.converged and abs(result.rel_volume_error) <= s.problem.options.tol_volume
+    assert seen == sorted(seen) and seen[-1] == 1.0  # one stage, never decreasing
