@@ -33,8 +33,10 @@ first records), :mod:`~benchmarks.scale` (evaluation at scale, the armadillo),
 :mod:`~benchmarks.profiling` (where a solve's time goes, with cProfile),
 :mod:`~benchmarks.display` (the Display rate section) with :mod:`~benchmarks.drag_cases`
 (its solver measurements) and :mod:`~benchmarks.local_lattice` (Blender's 16x16x16 B-spline
-lattice), :mod:`~benchmarks.first_evaluation` (a fresh process's first
-evaluation while the kernels load) and :mod:`~benchmarks.window` (the window's rows),
+lattice), :mod:`~benchmarks.dense_layer` (a whole layer pushed on a dense lattice, a
+Session's re-solve after a nudge, the local kernels, in machine units),
+:mod:`~benchmarks.first_evaluation` (a fresh process's first evaluation while the kernels
+load) and :mod:`~benchmarks.window` (the window's rows),
 :mod:`~benchmarks.sequences` (keyframed poses),
 :mod:`~benchmarks.constraints` (what each constraint costs: pairs, rows, measuring) with
 :mod:`~benchmarks.constraint_cases` (its cases) and :mod:`~benchmarks.constraints_report`
