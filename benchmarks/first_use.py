@@ -45,6 +45,7 @@ from benchmarks import BLAS_ENV
 from benchmarks.api_threads import api_threads_rows
 from benchmarks.display import Row, target_table
 from benchmarks.drag_cases import big_armadillo
+from benchmarks.machine import UNIT_BYTES, machine_unit
 from benchmarks.scale import ARMADILLO, ROOT
 from benchmarks.timing import Timing
 
@@ -216,14 +217,11 @@ def _ratio_row(name: str, fast: list[Cold], slow: list[Cold]) -> Row:
     return Row(f"cold isochor solve, fast / without, {name}", tf, "ratio <= 1.0", met, why)
 
 
-def read_bandwidth(repeats: int, mb: int = 256) -> float:
-    """Bytes a second one thread reads: the best of ``repeats`` sums of a ``mb`` MB array
-    (a streaming read, far larger than the caches)."""
-    from benchmarks.timing import time_call
-
-    a = np.ones(mb * (1 << 20) // 8)
-    t = time_call(lambda: np.add.reduce(a), max(3, repeats))
-    return a.nbytes / t.lo
+def read_bandwidth() -> float:
+    """Bytes a second one thread reads: the fastest of the machine unit's 1 GB sums
+    (:mod:`benchmarks.machine`; a streaming read, far larger than the caches)."""
+    unit = machine_unit()
+    return UNIT_BYTES / unit.read.lo
 
 
 def _evaluation_setup(triangles: int, shape=(3, 3, 3)):
@@ -305,7 +303,7 @@ def _evaluation_row(repeats: int) -> Row:
         "volume and gradient": rows + ptr.nbytes + seq.nbytes + rows,
         "transpose": uvw.nbytes + rows,
     }
-    bandwidth = read_bandwidth(repeats)
+    bandwidth = read_bandwidth()
     floor = need / bandwidth
     ratio = t_one.median / floor
     each = ", ".join(
@@ -393,7 +391,7 @@ def run_first_use(models: Path, repeats: int, quick: bool = False) -> tuple[list
             rows += _big_rows(models, folder, notes)
     notes.append(f"the kernels are loaded for models of {WORTH_TRIANGLES} triangles and more")
     for r in rows:
-        print(f"  {r.what}: {r.ms()} ms; {r.target}; {r.verdict()}")
+        print("  " + r.line())
     return rows, notes
 
 
@@ -573,6 +571,7 @@ def section(rows: list[Row], notes: list[str], command: str) -> list[str]:
         "the solve on two cores slows the solve down; from there on numba starts once the",
         "model's level pyramid is made (in a forked child, whose peak numba's 110 MB would",
         "add to) and the problem is built when it is ready.",
+        f"The {machine_unit().words()}; 'u' below is that unit (:mod:`benchmarks.machine`).",
         "",
     ]
     return lines + target_table(rows, notes)
