@@ -695,3 +695,22 @@ def test_basis_output_layout_and_values(monkeypatch):
             tr = b.apply_transpose(gl)
             assert tr.shape == (lat.n_nodes, 3) and tr.flags.c_contiguous
             assert np.allclose(tr, dense.dense.T @ g, atol=1e-12)
+
+
+def test_beyond_the_solve_row_takes_the_slowest_models_median(unit_of_100ms):
+    from benchmarks.first_use import BEYOND_SOLVE, Cold, beyond_solve_row
+
+    def run(wall, solve, ok=True):
+        return Cold(wall, solve, 100.0, False, ok)
+
+    runs = {
+        "a.obj": [run(0.40, 0.02), run(0.42, 0.02), run(0.9, 0.02, ok=False)],
+        "b.obj": [run(0.70, 0.10), run(0.66, 0.10), run(0.68, 0.10)],
+    }
+    row = beyond_solve_row("beyond", runs)
+    assert "b.obj" in row.what and row.timing.median == pytest.approx(0.58)
+    assert row.met is (BEYOND_SOLVE >= 0.58) and "a.obj 390 (380-400) ms" in row.why
+    slow = beyond_solve_row("beyond", {"c.obj": [run(0.9, 0.1)]})
+    assert slow.met is False and slow.timing.median == pytest.approx(0.8)
+    none = beyond_solve_row("beyond", {"d.obj": [run(1.0, None, ok=False)]})
+    assert none.met is None and none.timing is None
