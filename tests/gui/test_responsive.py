@@ -403,3 +403,54 @@ def test_the_editor_process_ends_when_its_window_closes(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["closing"]
+
+
+def test_a_proxy_whose_paints_overrun_the_budget_gives_way_to_a_coarser_level(
+    qtbot, big_torus, monkeypatch
+):
+    """The proxy's size follows what its paints cost: within the budget it stays; over it,
+    the next coarser pyramid level is drawn while things move (never below the floor), a
+    rebuilt scene starts from that level, and the full mesh still comes back after a pause.
+    The budget is set so that every paint is within it, then every paint over it: the
+    measured paint times decide, and no time is asserted."""
+    from isochor.app.view import modelview
+
+    win = big_torus
+    vp = win.viewport
+    frames, model = vp.model_frames, vp.scene.model
+    levels = [m.n_faces for m in win.state.surface.levels]
+    assert model.proxy.n_faces == 16384 and levels[model.proxy_k] == 16384
+    monkeypatch.setattr(modelview, "PROXY_BUDGET", 1e9)
+    for _ in range(3):
+        _turn_camera(qtbot, vp)
+        qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    assert model.proxy.n_faces == 16384 and model.proxy_cap is None
+    finer = model.proxy.actor
+    monkeypatch.setattr(modelview, "PROXY_BUDGET", 0.0)
+    paints = vp.paints
+    for _ in range(6):
+        _turn_camera(qtbot, vp)
+        assert frames.drawn_model().startswith("proxy")
+        qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    assert vp.paints - paints >= modelview.PROXY_SAMPLES
+    # 16384 -> 4096, and not to 1024 (below the floor)
+    assert model.proxy.n_faces == 4096 and levels[model.proxy_k] == 4096
+    assert model.proxy_cap == 4096 and modelview.PROXY_FLOOR > 1024
+    assert not vp.renderer.HasViewProp(finer), "the finer proxy left the scene"
+    _turn_camera(qtbot, vp)
+    assert frames.drawn_model() == f"proxy (level {model.proxy_k + 1}, 4096 triangles)"
+    assert vp.scene.model.proxy.actor.GetMapper().GetInput().GetNumberOfCells() == 4096
+    # the coarser proxy draws the same model: its picture nearly covers the finer one's
+    # (the torus in the same place), unlike the empty background
+    shown = _shown_pixels(vp)
+    background = shown[2, 2]
+    covered = (np.abs(shown.astype(int) - background.astype(int)).max(axis=2) > 30).sum()
+    assert covered > 0.05 * shown.shape[0] * shown.shape[1]
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    assert frames.drawn_model().startswith("full mesh")
+    win.rebuild_lattice((4, 4, 4))  # a new scene: the proxy starts at the level found
+    qtbot.waitUntil(lambda: tuple(win.state.lattice.shape) == (4, 4, 4), timeout=30_000)
+    model = vp.scene.model
+    assert model.proxy.n_faces == 4096
+    assert vp.renderer.HasViewProp(model.proxy.actor) and not vp.renderer.HasViewProp(finer)
+    assert vp.renderer.HasViewProp(model.full.actor)
