@@ -454,3 +454,41 @@ def test_a_proxy_whose_paints_overrun_the_budget_gives_way_to_a_coarser_level(
     assert model.proxy.n_faces == 4096
     assert vp.renderer.HasViewProp(model.proxy.actor) and not vp.renderer.HasViewProp(finer)
     assert vp.renderer.HasViewProp(model.full.actor)
+
+
+def test_a_dense_rebuild_of_a_big_model_is_computed_off_the_gui_thread_and_shown_as_proxy(
+    qtbot, big_torus, held_rebuild, monkeypatch
+):
+    """Rebuilding to Blender's dense lattice (16x16x16 B-spline) on a model with a proxy: the
+    basis, springs and view arrays are computed on the rebuild's thread while the event loop
+    keeps turning; committed, the new scene is painted at its proxy first and the full mesh
+    comes back after the pause, drawn in passes."""
+    from PySide6.QtCore import QTimer
+
+    from isochor.app.view import modelview
+
+    # (a full mesh of this torus's size is drawn at once after a frame; the armadillo's is not)
+    monkeypatch.setattr(modelview, "AT_ONCE_FACES", 1000)
+    win = big_torus
+    vp = win.viewport
+    seen = _record_threads(monkeypatch)
+    gui = threading.current_thread().name
+    win.lattice_rebuild.start((16, 16, 16), "bspline")
+    thread = win.lattice_rebuild.threads[-1]
+    assert thread.is_alive() and thread.name.startswith("isochor-lattice-")
+    ticks = []
+    timer = QTimer()
+    timer.timeout.connect(lambda: ticks.append(thread.is_alive()))
+    timer.start(5)
+    qtbot.waitUntil(lambda: len(ticks) >= 5, timeout=5_000)
+    held_rebuild.set()
+    qtbot.waitUntil(lambda: tuple(win.state.lattice.shape) == (16, 16, 16), timeout=60_000)
+    timer.stop()
+    assert all(ticks[:5]), "the event loop turned while the thread worked"
+    assert seen and gui not in seen and all(n.startswith("isochor-lattice-") for n in seen)
+    assert win.state.lattice.basis == ("bspline",) * 3 and len(vp.nodes) == 16**3
+    assert vp.model_frames.drawn_model().startswith("proxy"), "the first paint: the proxy"
+    composer = vp.scene.model.composer
+    shown = composer.shown
+    qtbot.waitUntil(vp.model_frames.showing_full, timeout=20_000)
+    assert vp.model_frames.drawn_model().startswith("full mesh") and composer.shown > shown
