@@ -27,7 +27,9 @@ Definitions (as in the paper):
 * Node error (Figures 5-8): the largest distance of a node from its final position, over
   the object size.
 
-Modules: :mod:`~benchmarks.timing` (timings, memory, machine), :mod:`~benchmarks.cases`
+Modules: :mod:`~benchmarks.timing` (timings, memory, the host), :mod:`~benchmarks.machine`
+(the machine unit every time is also stated in: one thread summing 1 GB, a compute kernel),
+:mod:`~benchmarks.cases`
 (the examples and draining a solve), :mod:`~benchmarks.tables` (Tables 1-2, start levels,
 first records), :mod:`~benchmarks.scale` (evaluation at scale, the armadillo),
 :mod:`~benchmarks.profiling` (where a solve's time goes, with cProfile),

@@ -27,6 +27,7 @@ Rows (measurements in :mod:`benchmarks.drag_cases`, the window's in :mod:`benchm
 
 from __future__ import annotations
 
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +36,7 @@ from benchmarks import drag_cases as dc
 from benchmarks.cases import Case
 from benchmarks.first_evaluation import first_evaluation
 from benchmarks.local_lattice import local_rows
+from benchmarks.machine import in_units, machine_unit
 from benchmarks.scale import ARMADILLO, SCALE_TORI, scale_row
 from benchmarks.tables import table1_row
 from benchmarks.timing import Timing, kernel_status
@@ -72,6 +74,23 @@ class Row:
             return "-"
         return self.timing.ms(3 if self.timing.median < 1e-3 else 1)
 
+    def units(self) -> str:
+        """The median in machine units (:mod:`benchmarks.machine`) and, when the target is a
+        time (``<= 16 ms``), the target too: ``"0.31 u (<= 0.15 u)"``."""
+        if self.timing is None:
+            return "-"
+        out = in_units(self.timing.median)
+        limit = re.search(r"<=?\s*([0-9.]+)\s*(ms|s)\b", self.target)
+        if limit:
+            seconds = float(limit.group(1)) * (1e-3 if limit.group(2) == "ms" else 1.0)
+            out += f" (<= {in_units(seconds)})"
+        return out
+
+    def line(self) -> str:
+        """One console line: what, the median (min-max) in ms and in machine units, the
+        target and the verdict with its reason."""
+        return f"{self.what}: {self.ms()} ms = {self.units()}; {self.target}; {self.verdict()}"
+
     def verdict(self) -> str:
         if self.met is None:
             return f"not measured: {self.why}"
@@ -81,8 +100,8 @@ class Row:
 
 def target_table(rows: list[Row], notes: list[str]) -> list[str]:
     """The markdown rows of a section's targets (what, ms, target, verdict), then its notes."""
-    lines = ["| what | ms | target | |", "|---|---|---|---|"]
-    lines += [f"| {r.what} | {r.ms()} | {r.target} | {r.verdict()} |" for r in rows]
+    lines = ["| what | ms | machine units | target | |", "|---|---|---|---|---|"]
+    lines += [f"| {r.what} | {r.ms()} | {r.units()} | {r.target} | {r.verdict()} |" for r in rows]
     return lines + ["", *[f"- {n}" for n in notes]]
 
 
@@ -233,7 +252,7 @@ def run_display(models: Path, repeats: int) -> tuple[list[Row], list[str]]:
         rows.append(Row(what, row.t_eval, f"<= {target:g} ms", ms <= target, why))
     rows += _window_rows(models, repeats)
     for r in rows:
-        print(f"  {r.what}: {r.ms()} ms; {r.target}; {r.verdict()}")
+        print("  " + r.line())
     return rows, notes
 
 
@@ -251,6 +270,7 @@ def section(rows: list[Row], notes: list[str], command: str, repeats: int) -> li
         "",
         f"`{command}`; medians of {repeats} repeats (min-max), one run where it says 1.",
         f"Evaluation kernels: {kernel_status()}.",
+        f"The {machine_unit().words()}; 'u' below is that unit (:mod:`benchmarks.machine`).",
         "A drag's frame is a live solve (`solve(..., live=True)`): it starts from the frame",
         "before on the coarsest level that agrees with the preview level, and stops on the",
         "finest level with at most `SolverOptions.live_triangles` triangles, never touching",

@@ -150,6 +150,11 @@ def _header(r: Results, lines: list[str]) -> None:
     lines.append(f"- Python {env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']}")
     lines.append(f"- BLAS threads: {env['blas']}")
     lines.append(f"- evaluation kernels: {env['kernels']}")
+    if env.get("unit"):
+        lines.append(
+            f"- {env['unit']}; 'u' is that unit: a time in units compares across machines "
+            "(benchmarks/machine.py)"
+        )
     lines.append(
         f"- every time is the median of {r.repeats} runs, (min-max) beside it; the "
         "machine is shared, so single runs can be slower\n"
@@ -157,11 +162,11 @@ def _header(r: Results, lines: list[str]) -> None:
     for n in r.notes:
         lines.append(f"> {n}\n")
     lines.append("## Targets\n")
-    lines.append("| target | measured | |")
-    lines.append("|---|---|---|")
+    lines.append("| target | measured | machine units | |")
+    lines.append("|---|---|---|---|")
     for t in r.targets:
         mark = {"MET": "MET", "MISSED": "**MISSED**"}.get(t.status, t.status)
-        lines.append(f"| {t.name} | {t.measured} | {mark} |")
+        lines.append(f"| {t.name} | {t.measured} | {t.units or '-'} | {mark} |")
     missed = [t for t in r.targets if t.met is False and t.why]
     if missed:
         lines.append("\nWhy missed, and what was tried:\n")

@@ -199,12 +199,13 @@ def main(
     repeats = args.repeats or (2 if quick else 7)
     out = args.out if args.out is not None else (None if quick else DEFAULT_OUT)
     models = args.models or Path(os.environ.get("ISOCHOR_MODELS", DEFAULT_MODELS))
-    env = environment(user_blas)
+    env = environment(user_blas, unit=True)
     print(
         f"python -m benchmarks{' --quick' if quick else ''}: {env['cpu']}; Python "
         f"{env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']}; {env['blas']}"
     )
     print(f"evaluation kernels: {env['kernels']}")
+    print(env["unit"])
     print(f"{repeats} repeats per timing; medians (min-max)\n")
     command = " ".join(["python -m benchmarks", *argv])
     if args.only == "constraints":

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from benchmarks.constraints import ConstraintRow
+from benchmarks.machine import in_units
 from benchmarks.scale import ScaleRow
 from benchmarks.tables import Table1Row
 from isochor.core.goal.constraints import CENTROID_SCALE
@@ -22,6 +23,8 @@ class Target:
     met: bool | None  #: None: not measured in this run
     reason: str = ""  #: measured: the numbers against the limit; not measured: why not
     why: str = ""  #: shown in the report when missed: why, and what was tried
+    #: a time target's figure and limit in machine units (:mod:`benchmarks.machine`), else ""
+    units: str = ""
 
     @property
     def status(self) -> str:
@@ -31,7 +34,8 @@ class Target:
         """One console line: ``[STATUS] name: measured (reason)``."""
         if self.met is None:
             return f"[not measured] {self.name}: {self.reason}"
-        return f"[{self.status}] {self.name}: {self.measured} ({self.reason})"
+        units = f"; {self.units}" if self.units else ""
+        return f"[{self.status}] {self.name}: {self.measured} ({self.reason}{units})"
 
 
 def not_measured(name: str, why: str) -> Target:
@@ -41,11 +45,14 @@ def not_measured(name: str, why: str) -> Target:
 def below(
     name: str, value: float, limit: float, unit: str, measured: str, why: str = "", digits: int = 1
 ) -> Target:
-    """A target met when ``value < limit`` (both in ``unit``)."""
+    """A target met when ``value < limit`` (both in ``unit``); a time (``unit`` "ms" or
+    "s") is stated in machine units too."""
     met = value < limit
     rel = "<" if met else ">="
     reason = f"{value:.{digits}f} {unit} {rel} {limit:g} {unit}"
-    return Target(name, measured, met, reason, why)
+    scale = {"ms": 1e-3, "s": 1.0}.get(unit)
+    units = f"{in_units(value * scale)} {rel} {in_units(limit * scale)}" if scale else ""
+    return Target(name, measured, met, reason, why, units)
 
 
 WHY = {

@@ -104,10 +104,11 @@ def limit_blas_threads(numpy_first: bool, user_blas: Mapping[str, str]) -> bool:
     return True
 
 
-def environment(user_blas: Mapping[str, str] | None = None) -> dict[str, str]:
+def environment(user_blas: Mapping[str, str] | None = None, unit: bool = False) -> dict[str, str]:
     """The machine and libraries, for the report's header.
 
-    ``user_blas``: the BLAS variables the user had set before the benchmark started.
+    ``user_blas``: the BLAS variables the user had set before the benchmark started;
+    ``unit``: measure the machine unit too (``"unit"``, :mod:`benchmarks.machine`).
     """
     cpu = platform.processor() or platform.machine()
     try:
@@ -132,7 +133,7 @@ def environment(user_blas: Mapping[str, str] | None = None) -> dict[str, str]:
         pass
     if user_blas:
         blas += " (set by the user before the benchmark started)"
-    return {
+    out = {
         "date": datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
         "cpu": f"{cpu}, {os.cpu_count()} logical CPUs",
         "python": platform.python_version(),
@@ -142,6 +143,11 @@ def environment(user_blas: Mapping[str, str] | None = None) -> dict[str, str]:
         "platform": platform.platform(),
         "kernels": kernel_status(),
     }
+    if unit:
+        from benchmarks.machine import machine_unit  # (machine imports this module)
+
+        out["unit"] = machine_unit().words()
+    return out
 
 
 def kernel_status() -> str:

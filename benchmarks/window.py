@@ -153,7 +153,7 @@ def run_window(models: Path, repeats: int) -> list[Row]:
         *opening,
     ]
     for r in rows:
-        print(f"  {r.what}: {r.ms()} ms; {r.target}; {r.verdict()}")
+        print("  " + r.line())
     return rows
 
 

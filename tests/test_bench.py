@@ -18,6 +18,7 @@ from benchmarks import (
     constraint_cases,
     constraints,
     constraints_report,
+    machine,
     profiling,
     report,
     scale,
@@ -81,6 +82,54 @@ def test_environment_and_memory():
     assert {"date", "cpu", "python", "numpy", "scipy", "blas", "platform"} <= set(env)
     assert "set by the user" in env["blas"] and "OPENBLAS_NUM_THREADS" in env["blas"]
     assert "set by the user" not in timing.environment({})["blas"]
+
+
+@pytest.fixture
+def unit_of_100ms():
+    """The machine unit taken as 100 ms for the test (the measured one put back after)."""
+    fixed = machine.MachineUnit(Timing((0.1,)), Timing((0.05,)))
+    previous = machine.use(fixed)
+    yield fixed
+    machine.use(previous)
+
+
+def test_machine_unit_reads_a_gigabyte_and_runs_the_compute_kernel():
+    unit = machine.measure(repeats=2)
+    assert len(unit.read.values) == 2 and len(unit.compute.values) == 2
+    assert unit.seconds == unit.read.median > 0 and unit.compute.median > 0
+    assert unit.bandwidth == pytest.approx(machine.UNIT_BYTES / unit.read.median)
+    assert unit.flops == pytest.approx(machine.FLOPS / unit.compute.median)
+    words = unit.words()
+    assert words.startswith("machine unit: 1 GB") and "GB/s" in words and "GFLOP/s" in words
+    assert machine.FLOPS == 2 * machine.DEGREE * machine.COMPUTE_POINTS * machine.COMPUTE_PASSES
+
+
+def test_the_compute_kernel_is_horners_rule_for_its_polynomial():
+    x = np.linspace(-1.0, 1.0, 1001)
+    y = machine.compute_kernel(x, np.empty_like(x), passes=3)
+    # the same multiply-adds in the same order as np.polyval; a few ulps either way
+    bound = machine.DEGREE * np.finfo(float).eps * np.polyval(np.abs(machine.COEFFICIENTS), abs(x))
+    assert np.all(np.abs(y - np.polyval(machine.COEFFICIENTS, x)) <= bound)
+
+
+def test_unit_is_measured_once_per_process_and_every_time_is_stated_in_it(unit_of_100ms):
+    assert machine.unit_seconds() == 0.1 and machine.machine_unit() is unit_of_100ms
+    assert machine.in_units(0.05) == "0.5 u" and machine.in_units(30.0) == "300 u"
+    t = targets.torus_40ms_target([_row(t2=0.030)])
+    assert t.units == "0.3 u < 0.4 u" and t.units in t.line()
+    assert targets.eval_1m_target([_scale_row(0.035)]).units == "0.35 u >= 0.3 u"
+    assert targets.accuracy_target([_row()]).units == ""  # not a time
+    from benchmarks.display import Row, target_table
+
+    row = Row("a drag frame", Timing((0.02, 0.05, 0.03)), "<= 16 ms", False)
+    assert row.units() == "0.3 u (<= 0.16 u)"
+    assert row.line() == "a drag frame: 30.0 (20.0-50.0) ms = 0.3 u (<= 0.16 u); <= 16 ms; " + (
+        "**MISSED**: slower than the target"
+    )
+    assert Row("ratio", Timing((0.2,)), "ratio <= 1.0", True).units() == "2 u"
+    assert Row("none", None, "-", None, "why").units() == "-"
+    table = target_table([row], [])
+    assert "machine units" in table[0] and "| 0.3 u (<= 0.16 u) |" in table[2]
 
 
 def test_main_sets_one_blas_thread_before_numpy_is_imported():
@@ -646,3 +695,22 @@ def test_basis_output_layout_and_values(monkeypatch):
             tr = b.apply_transpose(gl)
             assert tr.shape == (lat.n_nodes, 3) and tr.flags.c_contiguous
             assert np.allclose(tr, dense.dense.T @ g, atol=1e-12)
+
+
+def test_beyond_the_solve_row_takes_the_slowest_models_median(unit_of_100ms):
+    from benchmarks.first_use import BEYOND_SOLVE, Cold, beyond_solve_row
+
+    def run(wall, solve, ok=True):
+        return Cold(wall, solve, 100.0, False, ok)
+
+    runs = {
+        "a.obj": [run(0.40, 0.02), run(0.42, 0.02), run(0.9, 0.02, ok=False)],
+        "b.obj": [run(0.70, 0.10), run(0.66, 0.10), run(0.68, 0.10)],
+    }
+    row = beyond_solve_row("beyond", runs)
+    assert "b.obj" in row.what and row.timing.median == pytest.approx(0.58)
+    assert row.met is (BEYOND_SOLVE >= 0.58) and "a.obj 390 (380-400) ms" in row.why
+    slow = beyond_solve_row("beyond", {"c.obj": [run(0.9, 0.1)]})
+    assert slow.met is False and slow.timing.median == pytest.approx(0.8)
+    none = beyond_solve_row("beyond", {"d.obj": [run(1.0, None, ok=False)]})
+    assert none.met is None and none.timing is None

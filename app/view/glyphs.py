@@ -14,6 +14,8 @@ nodes; a frame only moves its input points (``poly.points[:] = ...``).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pyvista as pv
 from vtkmodules.vtkRenderingCore import vtkActor, vtkGlyph3DMapper
@@ -40,8 +42,10 @@ def glyph_size(lattice) -> float:
     return float(min(SPACING_FRACTION * spacing, SIZE_FRACTION * lattice.size))
 
 
-def _sources() -> list[pv.PolyData]:
-    """Unit-diameter glyph shapes, indexed by :data:`SPHERE` ... :data:`RINGED`."""
+@functools.cache
+def _sources() -> tuple[pv.PolyData, ...]:
+    """Unit-diameter glyph shapes, indexed by :data:`SPHERE` ... :data:`RINGED`; made once
+    (the mappers only read them): a rebuild of the scene does not make them again."""
     # few triangles: a node is ~10 pixels wide, and a software renderer draws every one
     sphere = pv.Sphere(radius=0.5, theta_resolution=9, phi_resolution=6)
     cube = pv.Cube(x_length=0.82, y_length=0.82, z_length=0.82).triangulate()
@@ -64,7 +68,7 @@ def _sources() -> list[pv.PolyData]:
         out.append(
             s.compute_normals(split_vertices=True, feature_angle=40, auto_orient_normals=True)
         )
-    return out
+    return tuple(out)
 
 
 def glyph_actor(poly: pv.PolyData, sources, size: float) -> vtkActor:

@@ -24,6 +24,7 @@ surface point is a full-mesh triangle whatever is on screen.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Iterator
 
 import numpy as np
@@ -45,6 +46,16 @@ from .meshprep import (  # noqa: F401 (draw_order, cells, capped_last: the view'
     ghost_mesh,
     proxy_level,
 )
+
+#: a moving frame's paint (the proxy's) should take at most this, seconds: software OpenGL
+#: draws every triangle, so when the median of the last :data:`PROXY_SAMPLES` paints of the
+#: proxy is over it, the next coarser pyramid level becomes the proxy (for the rest of the
+#: process: the machine is as slow for the next model)
+PROXY_BUDGET = 0.025
+PROXY_SAMPLES = 5
+#: the proxy never gets coarser than a level of this many triangles (a rougher stand-in
+#: shows its facets while it moves)
+PROXY_FLOOR = 2000
 
 #: how the model is lit (the same for the full mesh and the proxy)
 LOOK = {"specular": 0.25, "specular_power": 20, "diffuse": 0.85, "ambient": 0.12}
@@ -207,6 +218,9 @@ class ModelView:
         self._upgrade: Iterator[None] | None = None
         self._points: tuple[np.ndarray, np.ndarray] | None = None  # (nodes, full points)
         self._scale = 1.0  # full rest volume / proxy rest volume
+        #: the most triangles a proxy may have, lowered when its paints overrun the budget
+        self.proxy_cap: int | None = None
+        self._proxy_costs: deque[float] = deque(maxlen=PROXY_SAMPLES)
         #: draws the full mesh's frame in passes when a big model stops moving
         self.composer = Composer(plotter.ren_win, plotter.renderer)
 
@@ -235,6 +249,45 @@ class ModelView:
             self._scale = prep.scale
             self.proxy.actor.SetVisibility(False)
             self.full.add_pieces(self.plotter)
+            self._proxy_costs.clear()
+            cap = self.proxy_cap
+            k = self.proxy_k
+            while cap is not None and k > 0 and surface.levels[k].n_faces > cap:
+                k -= 1
+            if k != self.proxy_k and surface.levels[k].n_faces >= PROXY_FLOOR:
+                self._set_proxy(k)
+
+    # -- the proxy's size ----------------------------------------------------------------------
+    def proxy_painted(self, seconds: float) -> None:
+        """The view painted a frame in ``seconds``: counted when it showed the proxy."""
+        if self.proxy is not None and self.proxy.actor.GetVisibility():
+            self._proxy_costs.append(float(seconds))
+
+    def _fit_proxy(self) -> None:
+        """A coarser proxy when the last paints of this one overran :data:`PROXY_BUDGET`."""
+        costs = self._proxy_costs
+        if len(costs) < PROXY_SAMPLES or float(np.median(costs)) <= PROXY_BUDGET:
+            return
+        k = self.proxy_k - 1
+        if k < 0 or self._surface.levels[k].n_faces < PROXY_FLOOR:
+            return
+        self._set_proxy(k)
+        self.proxy_cap = self._surface.levels[k].n_faces
+
+    def _set_proxy(self, k: int) -> None:
+        """Draw pyramid level ``k`` as the proxy from now on (a small level: its arrays are
+        made here, in a few milliseconds)."""
+        surface = self._surface
+        mesh = capped_last(surface.levels[k], surface.full)
+        prep = MeshPrep.of(mesh, surface.deform(self.nodes, level=k), surface.center)
+        shown = bool(self.proxy.actor.GetVisibility())
+        self.plotter.remove_actor(self.proxy.actor, render=False)
+        self.proxy = MeshView(self.plotter, prep, "proxy", self.smooth, self.cull)
+        self.proxy.actor.SetVisibility(shown)
+        self.proxy_k = k
+        rest = prep.shading(mesh.vertices)[1]
+        self._scale = surface.rest_volume / rest if rest else 1.0
+        self._proxy_costs.clear()
 
     def set_culling(self, on: bool) -> None:
         """Cull the back faces of the closed meshes (on, the default) or draw them."""
@@ -268,6 +321,7 @@ class ModelView:
                 self._show(full=True)
                 self.volume, self.estimated = self.full.volume, False
                 return
+        self._fit_proxy()
         self.proxy.draw_at(self._surface.deform(nodes, level=self.proxy_k), self.smooth)
         self.volume, self.estimated = self.proxy.volume * self._scale, True
         self._show(full=False)

@@ -77,6 +77,8 @@ class Scene:
     def build(self, surface, nodes: np.ndarray, pin_axes, moved, held=None) -> None:
         """Replace every actor for a new model or lattice (not called per frame)."""
         p = self.plotter
+        if self.model.proxy is not None:  # (the model may have drawn a coarser one since)
+            self.actors["proxy"] = self.model.proxy.actor
         for actor in self.actors.values():
             p.remove_actor(actor, render=False)
         self.actors.clear()
@@ -107,7 +109,7 @@ class Scene:
 
         edges = np.asarray(surface.springs.edges)
         lattice = surface.lattice
-        ijk = np.array([lattice.ijk(r) for r in range(lattice.n_nodes)])
+        ijk = np.stack(np.unravel_index(np.arange(lattice.n_nodes), lattice.shape), axis=1)
         axis_edge = np.abs(ijk[edges[:, 0]] - ijk[edges[:, 1]]).sum(axis=1) == 1
         self._springs_axis = pv.PolyData(self.nodes.copy(), lines=_cells(edges[axis_edge]))
         self._springs_diag = pv.PolyData(self.nodes.copy(), lines=_cells(edges[~axis_edge]))

@@ -293,6 +293,8 @@ class Viewport(QtInteractor):
         with self._paint_hold(), self.scene.model.composer.showing():
             super().paintGL()
         self.paint_seconds = time.perf_counter() - t0
+        if self.scene.built:  # (the proxy's size follows what its paints cost)
+            self.scene.model.proxy_painted(self.paint_seconds)
         self.paints += 1
         if self.paints == 1:
             self.firstPainted.emit()

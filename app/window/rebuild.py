@@ -146,7 +146,10 @@ class LatticeRebuild(QObject):
     def _on_built(self, gen: int, done) -> None:
         if self._current(gen):
             self.win.statusBar().clearMessage()
-            self._commit(*done)
+            if self._commit(*done):
+                # the new scene's first paint is the proxy's; the full mesh (its buffers
+                # uploaded anew, a render of every triangle) comes in passes after a pause
+                self.win.viewport.model_frames.lower()
 
     def _on_failed(self, gen: int, message: str) -> None:
         if self._current(gen):

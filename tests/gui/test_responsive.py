@@ -403,3 +403,92 @@ def test_the_editor_process_ends_when_its_window_closes(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["closing"]
+
+
+def test_a_proxy_whose_paints_overrun_the_budget_gives_way_to_a_coarser_level(
+    qtbot, big_torus, monkeypatch
+):
+    """The proxy's size follows what its paints cost: within the budget it stays; over it,
+    the next coarser pyramid level is drawn while things move (never below the floor), a
+    rebuilt scene starts from that level, and the full mesh still comes back after a pause.
+    The budget is set so that every paint is within it, then every paint over it: the
+    measured paint times decide, and no time is asserted."""
+    from isochor.app.view import modelview
+
+    win = big_torus
+    vp = win.viewport
+    frames, model = vp.model_frames, vp.scene.model
+    levels = [m.n_faces for m in win.state.surface.levels]
+    assert model.proxy.n_faces == 16384 and levels[model.proxy_k] == 16384
+    monkeypatch.setattr(modelview, "PROXY_BUDGET", 1e9)
+    for _ in range(3):
+        _turn_camera(qtbot, vp)
+        qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    assert model.proxy.n_faces == 16384 and model.proxy_cap is None
+    finer = model.proxy.actor
+    monkeypatch.setattr(modelview, "PROXY_BUDGET", 0.0)
+    paints = vp.paints
+    for _ in range(6):
+        _turn_camera(qtbot, vp)
+        assert frames.drawn_model().startswith("proxy")
+        qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    assert vp.paints - paints >= modelview.PROXY_SAMPLES
+    # 16384 -> 4096, and not to 1024 (below the floor)
+    assert model.proxy.n_faces == 4096 and levels[model.proxy_k] == 4096
+    assert model.proxy_cap == 4096 and modelview.PROXY_FLOOR > 1024
+    assert not vp.renderer.HasViewProp(finer), "the finer proxy left the scene"
+    _turn_camera(qtbot, vp)
+    assert frames.drawn_model() == f"proxy (level {model.proxy_k + 1}, 4096 triangles)"
+    assert vp.scene.model.proxy.actor.GetMapper().GetInput().GetNumberOfCells() == 4096
+    # the coarser proxy draws the same model: its picture nearly covers the finer one's
+    # (the torus in the same place), unlike the empty background
+    shown = _shown_pixels(vp)
+    background = shown[2, 2]
+    covered = (np.abs(shown.astype(int) - background.astype(int)).max(axis=2) > 30).sum()
+    assert covered > 0.05 * shown.shape[0] * shown.shape[1]
+    qtbot.waitUntil(frames.showing_full, timeout=10_000)
+    assert frames.drawn_model().startswith("full mesh")
+    win.rebuild_lattice((4, 4, 4))  # a new scene: the proxy starts at the level found
+    qtbot.waitUntil(lambda: tuple(win.state.lattice.shape) == (4, 4, 4), timeout=30_000)
+    model = vp.scene.model
+    assert model.proxy.n_faces == 4096
+    assert vp.renderer.HasViewProp(model.proxy.actor) and not vp.renderer.HasViewProp(finer)
+    assert vp.renderer.HasViewProp(model.full.actor)
+
+
+def test_a_dense_rebuild_of_a_big_model_is_computed_off_the_gui_thread_and_shown_as_proxy(
+    qtbot, big_torus, held_rebuild, monkeypatch
+):
+    """Rebuilding to Blender's dense lattice (16x16x16 B-spline) on a model with a proxy: the
+    basis, springs and view arrays are computed on the rebuild's thread while the event loop
+    keeps turning; committed, the new scene is painted at its proxy first and the full mesh
+    comes back after the pause, drawn in passes."""
+    from PySide6.QtCore import QTimer
+
+    from isochor.app.view import modelview
+
+    # (a full mesh of this torus's size is drawn at once after a frame; the armadillo's is not)
+    monkeypatch.setattr(modelview, "AT_ONCE_FACES", 1000)
+    win = big_torus
+    vp = win.viewport
+    seen = _record_threads(monkeypatch)
+    gui = threading.current_thread().name
+    win.lattice_rebuild.start((16, 16, 16), "bspline")
+    thread = win.lattice_rebuild.threads[-1]
+    assert thread.is_alive() and thread.name.startswith("isochor-lattice-")
+    ticks = []
+    timer = QTimer()
+    timer.timeout.connect(lambda: ticks.append(thread.is_alive()))
+    timer.start(5)
+    qtbot.waitUntil(lambda: len(ticks) >= 5, timeout=5_000)
+    held_rebuild.set()
+    qtbot.waitUntil(lambda: tuple(win.state.lattice.shape) == (16, 16, 16), timeout=60_000)
+    timer.stop()
+    assert all(ticks[:5]), "the event loop turned while the thread worked"
+    assert seen and gui not in seen and all(n.startswith("isochor-lattice-") for n in seen)
+    assert win.state.lattice.basis == ("bspline",) * 3 and len(vp.nodes) == 16**3
+    assert vp.model_frames.drawn_model().startswith("proxy"), "the first paint: the proxy"
+    composer = vp.scene.model.composer
+    shown = composer.shown
+    qtbot.waitUntil(vp.model_frames.showing_full, timeout=20_000)
+    assert vp.model_frames.drawn_model().startswith("full mesh") and composer.shown > shown
