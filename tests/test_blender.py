@@ -112,7 +112,7 @@ def ffd_case(kind: str, shape, outside: bool = False):
     rotated, moved lattice object: (Blender's evaluated modifier output, Isochor's FFD of
     the same points, the points' size)."""
     from blender.rig import BASES, isochor_order
-    from blender.scene import Target
+    from blender.scene import Target, User
 
     empty_scene()
     rng = np.random.default_rng(abs(hash((kind, shape, outside))) % 2**32)
@@ -132,7 +132,7 @@ def ffd_case(kind: str, shape, outside: bool = False):
         lat.data.use_outside = True
         moved = points(lat)
     bpy.context.view_layer.update()
-    target = Target(ob, mod, lat)
+    target = Target(lat, (User(ob, mod),))
     to_lat, rest = target.to_lattice(), target.rest()
     options = {"outside": True} if outside else {}
     ffd = Lattice(shape, rest[0], np.diag(rest[-1] - rest[0]), basis=BASES[kind], **options)
@@ -237,7 +237,7 @@ def test_bad_input_is_one_line_and_changes_nothing(addon):
     mod.object = lat
     mod.strength = 0.5
     before = points(lat)
-    with pytest.raises(RuntimeError, match=r"strength is 0.5; set it to 1$"):
+    with pytest.raises(RuntimeError, match=r"has strength 0.5; set it to 1$"):
         bpy.ops.isochor.preserve_volume()
     mod.strength = 1.0
     with pytest.raises(RuntimeError, match=r"pin some lattice points first"):
@@ -267,9 +267,10 @@ def test_a_mesh_that_cannot_be_closed_is_one_line(addon):
     np.testing.assert_array_equal(points(lat), before)
 
 
-def pin_and_drag(lat, lift: float) -> np.ndarray:
+def pin_and_drag(lat, lift: float, height: float | None = None) -> np.ndarray:
     """Pins the bottom two layers (w = 0, 1) and the top layer's middle points, moved up by
-    ``lift`` of the lattice's height; returns the pinned mask (Blender's order)."""
+    ``lift`` of the lattice's ``height`` (its rest grid's, by default); returns the pinned
+    mask (Blender's order)."""
     data = lat.data
     pu, pv, pw = data.points_u, data.points_v, data.points_w
     w, v, u = np.unravel_index(np.arange(len(data.points)), (pw, pv, pu))
@@ -277,7 +278,8 @@ def pin_and_drag(lat, lift: float) -> np.ndarray:
     dragged = (w == pw - 1) & middle
     pinned = (w <= 1) | dragged
     data.points.foreach_set("select", pinned)
-    height = data.points[-1].co[2] - data.points[0].co[2]
+    if height is None:
+        height = data.points[-1].co[2] - data.points[0].co[2]
     for i in np.flatnonzero(dragged):
         data.points[int(i)].co_deform.z += lift * height
     return pinned
@@ -388,6 +390,173 @@ def test_a_24_frame_bake_keeps_each_frames_volume(addon):
     bpy.context.scene.frame_set(12)
     assert abs(points(lat)[-1, 2] - (data.points[-1].co.z + 0.35 * height)) < 1e-5  # the key
     assert lat["isochor_baked"]  # a re-bake does not take these for pins
+
+
+# --- what the modifier deforms: shape keys, rigs, several meshes; Edit Mode ---------------
+
+
+def blender_volume(ob, lattice_on: bool = True) -> float:
+    """The volume of ``ob`` as Blender evaluates it, in world units, by Blender's own
+    ``bmesh.calc_volume`` (the Lattice modifier on, or switched off: the modifier's input)."""
+    mod = next(m for m in ob.modifiers if m.type == "LATTICE")
+    mod.show_viewport = lattice_on
+    try:
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        depsgraph.update()
+        ev = ob.evaluated_get(depsgraph)
+        bm = bmesh.new()
+        bm.from_mesh(ev.to_mesh())
+        ev.to_mesh_clear()
+        bm.transform(ob.matrix_world)
+        try:
+            return bm.calc_volume(signed=True)
+        finally:
+            bm.free()
+    finally:
+        mod.show_viewport = True
+
+
+def kept(ob) -> float:
+    """Blender's volume of the lattice's output over that of its input."""
+    return blender_volume(ob) / blender_volume(ob, lattice_on=False)
+
+
+@needs_bases
+def test_a_shape_key_at_value_1_is_what_is_solved(addon):
+    """A shape key that swells the top of the ball, at value 1: the modifier deforms the
+    keyed shape, so that is the volume kept (Blender's, not the Basis shape's)."""
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+    ob.shape_key_add(name="Basis")
+    key = ob.shape_key_add(name="swell")
+    for point in key.data:
+        if point.co.z > 0:
+            point.co = (point.co.x * 1.3, point.co.y * 1.3, point.co.z * 1.2)
+    key.value = 1.0
+    bpy.context.view_layer.update()
+    keyed = blender_volume(ob, lattice_on=False)
+    ob.data.shape_keys.key_blocks["swell"].mute = True
+    basis = blender_volume(ob, lattice_on=False)
+    ob.data.shape_keys.key_blocks["swell"].mute = False
+    assert keyed / basis - 1 > 0.2  # the key changes the solid a lot
+    pin_and_drag(lat, 0.3)
+    assert abs(kept(ob) - 1) > 10 * TOL_VOLUME
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
+    assert bpy.context.scene.isochor.volume == pytest.approx(blender_volume(ob), rel=F32_VOLUME)
+
+
+@needs_bases
+def test_an_armature_then_the_lattice(addon):
+    """The usual character stack: an Armature modifier (a posed bone that moves and
+    grows the upper half) before the Lattice modifier; the posed shape's volume is kept."""
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+    arm_data = bpy.data.armatures.new("rig")
+    arm = bpy.data.objects.new("rig", arm_data)
+    bpy.context.scene.collection.objects.link(arm)
+    bpy.context.view_layer.objects.active = arm
+    bpy.ops.object.mode_set(mode="EDIT")
+    bone = arm_data.edit_bones.new("top")
+    bone.head, bone.tail = (0, 0, 0), (0, 0, 0.5)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    group = ob.vertex_groups.new(name="top")
+    z = np.array([v.co.z for v in ob.data.vertices])
+    for i in np.flatnonzero(z > 0):
+        group.add([int(i)], float(min(1.0, 3 * z[i])), "REPLACE")
+    mod = ob.modifiers.new("Armature", "ARMATURE")
+    mod.object = arm
+    ob.modifiers.move(len(ob.modifiers) - 1, 0)  # before the Lattice modifier
+    assert [m.type for m in ob.modifiers] == ["ARMATURE", "LATTICE"]
+    pose = arm.pose.bones["top"]
+    pose.scale = (1.25, 1.25, 1.25)
+    pose.location = (0.05, 0.1, 0.0)
+    bpy.context.view_layer.objects.active = ob
+    bpy.context.view_layer.update()
+    ob.modifiers["Armature"].show_viewport = False
+    unposed = blender_volume(ob, lattice_on=False)
+    ob.modifiers["Armature"].show_viewport = True
+    assert blender_volume(ob, lattice_on=False) / unposed - 1 > 0.1  # the pose grew it
+    pin_and_drag(lat, 0.3)
+    assert abs(kept(ob) - 1) > 10 * TOL_VOLUME
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
+
+
+def two_balls():
+    """Two balls of different sizes side by side under one lattice; the big one active."""
+    ob, lat = rigged((5, 4, 4), "KEY_BSPLINE", subdivisions=3, radius=0.45)
+    ob.location = (-0.45, 0, 0)
+    small = sphere("small", subdivisions=3, radius=0.3)
+    small.location = (0.5, 0, 0)
+    small.modifiers.new("Lattice", "LATTICE").object = lat
+    bpy.context.view_layer.update()
+    return ob, small, lat
+
+
+@needs_bases
+@pytest.mark.parametrize("preserve", ["TOTAL", "BODIES"])
+def test_two_meshes_under_one_lattice(addon, preserve):
+    """Both meshes count: their volumes summed, or each its own, as the panel says."""
+    ob, small, lat = two_balls()
+    props = bpy.context.scene.isochor
+    props.preserve = preserve
+    data = lat.data
+    u = np.arange(len(data.points)) % data.points_u
+    data.points.foreach_set("select", u <= 1)  # the left two layers pinned
+    for i in np.flatnonzero(u == 0):  # ... and squashed towards the middle
+        data.points[int(i)].co_deform.x += 0.12
+    bpy.context.view_layer.update()
+    try:
+        rest = [blender_volume(o, lattice_on=False) for o in (ob, small)]
+        assert abs(blender_volume(ob) / rest[0] - 1) > 10 * TOL_VOLUME
+        assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+        now = [blender_volume(o) for o in (ob, small)]
+    finally:
+        props.preserve = "TOTAL"
+    assert abs(sum(now) / sum(rest) - 1) <= TOL_VOLUME + F32_VOLUME
+    each = [n / r - 1 for n, r in zip(now, rest, strict=True)]
+    if preserve == "BODIES":
+        assert max(map(abs, each)) <= TOL_VOLUME + F32_VOLUME, each
+    else:  # summed: the free right side grows the small ball to make up the big one's loss
+        assert max(map(abs, each)) > 10 * TOL_VOLUME, each
+    # the lattice active: the same rig, both meshes
+    bpy.context.view_layer.objects.active = lat
+    assert bpy.ops.isochor.measure() == {"FINISHED"}
+    assert props.volume == pytest.approx(sum(now), rel=F32_VOLUME)
+
+
+def edit_drag(lat, lift: float) -> np.ndarray:
+    """In the lattice's Edit Mode: select the pins and lift the top middle, as
+    :func:`pin_and_drag` does, through the edit lattice (whose points' ``co`` Blender
+    does not read as the rest grid: the height is taken before)."""
+    height = lat.data.points[-1].co[2] - lat.data.points[0].co[2]
+    bpy.context.view_layer.objects.active = lat
+    assert bpy.ops.object.mode_set(mode="EDIT") == {"FINISHED"}
+    assert lat.data.is_editmode
+    return pin_and_drag(lat, lift, height)
+
+
+@needs_bases
+@pytest.mark.parametrize("active", ["lattice", "mesh"])
+def test_edit_mode(addon, active):
+    """Pins selected and points moved in the lattice's Edit Mode, with the lattice or the
+    mesh active: the solve reads them as the artist sees them, the result shows in Edit
+    Mode (Blender's evaluated mesh keeps its volume) and stays after leaving it."""
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+    pinned = edit_drag(lat, 0.3)
+    if active == "mesh":
+        bpy.context.view_layer.objects.active = ob
+    assert lat.mode == "EDIT"
+    before = points(lat)
+    assert abs(kept(ob) - 1) > 10 * TOL_VOLUME  # the edit shows: the drag changed it
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    assert lat.mode == "EDIT"
+    in_edit = points(lat)
+    np.testing.assert_array_equal(in_edit[pinned], before[pinned])
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME  # seen in Edit Mode
+    bpy.context.view_layer.objects.active = lat
+    assert bpy.ops.object.mode_set(mode="OBJECT") == {"FINISHED"}
+    np.testing.assert_array_equal(points(lat), in_edit)  # kept after leaving
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
 
 
 # --- open meshes: the capped volume, Blender's Suzanne -----------------------------------
