@@ -559,6 +559,39 @@ def test_edit_mode(addon, active):
     assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
 
 
+@needs_bases
+def test_the_solve_runs_beside_blender_and_esc_cancels(addon):
+    """What the modal operator's timer drives (Blender without a window runs no modal
+    operator): the solve's thread runs while Blender's main thread goes on evaluating the
+    scene, nothing is written until it ends, its result is Blender's kept volume; a
+    cancel (Esc) ends the thread and leaves the points as they were."""
+    from blender.scene import RigError, Target
+    from blender.solving import Settings, Solve
+
+    ob, lat = rigged((8, 8, 8), "KEY_BSPLINE", subdivisions=5)
+    pin_and_drag(lat, 0.3)
+    bpy.context.view_layer.update()
+    before, dragged = points(lat), blender_volume(ob)
+    job = Solve(Target.of(ob), Settings())
+    turns, stages = 0, []
+    while job.running:  # the timer's turns: Blender's own work between them
+        assert blender_volume(ob) == dragged  # the scene is untouched while it solves
+        stages.append((job.stage, job.fraction))
+        turns += 1
+        job.wait(0.02)
+    assert turns >= 1 and stages[0][0] == "load"
+    np.testing.assert_array_equal(points(lat), before)
+    job.finish()
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
+    solved = points(lat)
+    job = Solve(Target.of(ob), Settings(ratio=1.3))
+    job.cancel()
+    assert job.wait(60)
+    with pytest.raises(RigError, match="^Isochor: cancelled; nothing was changed$"):
+        job.finish()
+    np.testing.assert_array_equal(points(lat), solved)
+
+
 # --- open meshes: the capped volume, Blender's Suzanne -----------------------------------
 
 
