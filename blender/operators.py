@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import bpy
 
+from .export import write_scenario
 from .scene import RigError, Target, Volumes
 from .solving import LiveSolver, Settings, Solve, bake
 
@@ -205,4 +206,42 @@ class ISOCHOR_OT_live(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (ISOCHOR_OT_preserve_volume, ISOCHOR_OT_measure, ISOCHOR_OT_bake, ISOCHOR_OT_live)
+class ISOCHOR_OT_export_scenario(bpy.types.Operator):
+    """Write the scene's problem as an Isochor scenario (JSON) and its mesh (OBJ), for
+    `isochor solve` and the Isochor editor"""
+
+    bl_idname = "isochor.export_scenario"
+    bl_label = "Export Isochor Scenario"
+
+    filepath: bpy.props.StringProperty(subtype="FILE_PATH")
+    filter_glob: bpy.props.StringProperty(default="*.json", options={"HIDDEN"})
+
+    def invoke(self, context, event):
+        if not self.filepath:
+            self.filepath = "scenario.json"
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def execute(self, context):
+        if not self.filepath:
+            self.report({"ERROR"}, "Isochor: give the scenario a file name")
+            return {"CANCELLED"}
+        try:
+            target = Target.of(context.active_object)
+            scenario, model = write_scenario(
+                target, _settings(context), bpy.path.abspath(self.filepath)
+            )
+        except _errors() as exc:
+            self.report({"ERROR"}, _line(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Isochor: wrote {scenario.name} and {model.name}")
+        return {"FINISHED"}
+
+
+CLASSES = (
+    ISOCHOR_OT_preserve_volume,
+    ISOCHOR_OT_measure,
+    ISOCHOR_OT_bake,
+    ISOCHOR_OT_live,
+    ISOCHOR_OT_export_scenario,
+)

@@ -67,6 +67,7 @@ class VIEW3D_PT_isochor(bpy.types.Panel):
         row.prop(props, "frame_start")
         row.prop(props, "frame_end")
         box.operator("isochor.bake", icon="KEYINGSET")
+        layout.operator("isochor.export_scenario", text="Export Scenario", icon="EXPORT")
         row = layout.row()
         if props.volume_ratio:
             capped = f", {holes_capped(props.holes)}" if props.holes else ""

@@ -33,7 +33,7 @@ def _failure(result) -> str | None:
     return f"Isochor: the solve did not converge ({result.message}); nothing was changed"
 
 
-def _check_pins(rig) -> None:
+def check_pins(rig) -> None:
     if not rig.pinned.any():
         raise RigError("Isochor: pin some lattice points first (select them, or a vertex group)")
     if rig.pinned.all():
@@ -57,7 +57,7 @@ class Solve:
         self.target, self.settings = target, settings
         self.rig = target.rig(settings.pins, settings.group)
         self.rig.preserve = settings.preserve
-        _check_pins(self.rig)
+        check_pins(self.rig)
         self.free = self.rig.written()
         self.read = target.points()  #: the points as the solve read them
         self.stage, self.fraction = "load", 0.0

@@ -7,6 +7,7 @@ numpy < 2, as Blender ships) and ``make test`` runs this file there; elsewhere i
 from __future__ import annotations
 
 import os
+import re
 import zipfile
 from pathlib import Path
 
@@ -21,6 +22,7 @@ import bmesh  # noqa: E402  (Blender's, after bpy)
 
 from isochor.core.defaults import TOL_VOLUME  # noqa: E402
 from isochor.core.lattice import Lattice  # noqa: E402
+from tests.blender_scenes import empty_scene, lattice, pin_and_drag, sphere  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Blender evaluates the modifier in float32: a volume measured from its output is this close
@@ -41,34 +43,6 @@ def addon():
     blender.register()
     yield blender
     blender.unregister()
-
-
-def empty_scene() -> None:
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-
-
-def sphere(name: str = "ball", subdivisions: int = 3, radius: float = 0.8):
-    mesh = bpy.data.meshes.new(name)
-    bm = bmesh.new()
-    bmesh.ops.create_icosphere(bm, subdivisions=subdivisions, radius=radius)
-    bm.to_mesh(mesh)
-    bm.free()
-    ob = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(ob)
-    return ob
-
-
-def lattice(shape, kind: str, size=(2.0, 2.0, 2.0), name: str = "cage"):
-    """A lattice object of ``shape`` points whose rest grid spans ``size`` about the origin."""
-    data = bpy.data.lattices.new(name)
-    data.points_u, data.points_v, data.points_w = shape
-    for axis in "uvw":
-        setattr(data, f"interpolation_type_{axis}", kind)
-    ob = bpy.data.objects.new(name, data)
-    bpy.context.scene.collection.objects.link(ob)
-    first, last = np.array(data.points[0].co), np.array(data.points[-1].co)
-    ob.scale = tuple(np.asarray(size) / (last - first))
-    return ob
 
 
 def rigged(shape, kind, **mesh):
@@ -265,24 +239,6 @@ def test_a_mesh_that_cannot_be_closed_is_one_line(addon):
         bpy.ops.isochor.preserve_volume()
     assert len(str(err.value).strip().splitlines()) == 1
     np.testing.assert_array_equal(points(lat), before)
-
-
-def pin_and_drag(lat, lift: float, height: float | None = None) -> np.ndarray:
-    """Pins the bottom two layers (w = 0, 1) and the top layer's middle points, moved up by
-    ``lift`` of the lattice's ``height`` (its rest grid's, by default); returns the pinned
-    mask (Blender's order)."""
-    data = lat.data
-    pu, pv, pw = data.points_u, data.points_v, data.points_w
-    w, v, u = np.unravel_index(np.arange(len(data.points)), (pw, pv, pu))
-    middle = (np.abs(u - (pu - 1) / 2) <= 0.5) & (np.abs(v - (pv - 1) / 2) <= 0.5)
-    dragged = (w == pw - 1) & middle
-    pinned = (w <= 1) | dragged
-    data.points.foreach_set("select", pinned)
-    if height is None:
-        height = data.points[-1].co[2] - data.points[0].co[2]
-    for i in np.flatnonzero(dragged):
-        data.points[int(i)].co_deform.z += lift * height
-    return pinned
 
 
 @needs_bases
@@ -592,6 +548,40 @@ def test_the_solve_runs_beside_blender_and_esc_cancels(addon):
     np.testing.assert_array_equal(points(lat), solved)
 
 
+@needs_bases
+def test_the_exported_scenario_solves_the_same_in_isochor_solve(addon, tmp_path):
+    """Export Scenario, then ``isochor solve`` on it (out of process): both converge and
+    the command's mesh is the one Blender's modifier shows after the add-on's solve,
+    within the solver's node tolerance of the lattice's size."""
+    import json
+    import subprocess
+    import sys
+
+    from isochor.core.defaults import TOL_NODES
+    from tests.test_caps import read_back
+
+    ob, lat = rigged((5, 5, 5), "KEY_BSPLINE", subdivisions=4)
+    pin_and_drag(lat, 0.3)
+    path = tmp_path / "ball.json"
+    assert bpy.ops.isochor.export_scenario(filepath=str(path)) == {"FINISHED"}
+    assert json.loads(path.read_text())["model"]["path"] == "ball.obj"
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    run = subprocess.run(
+        [sys.executable, "-m", "isochor.app.cli.main", "solve", str(path), "--out",
+         str(tmp_path / "out.obj"), "--report", str(tmp_path / "r.json")],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert json.loads((tmp_path / "r.json").read_text())["converged"]
+    cli, _ = read_back(tmp_path / "out.obj")
+    from blender.scene import Target
+
+    target = Target.of(ob)
+    (shown,) = target.outputs()  # Blender's evaluated mesh, in the lattice's space
+    size = np.ptp(target.rest(), axis=0).max()
+    assert np.abs(cli - shown).max() <= TOL_NODES * size
+
+
 # --- open meshes: the capped volume, Blender's Suzanne -----------------------------------
 
 
@@ -807,6 +797,7 @@ def test_the_addon_keeps_suzannes_capped_volume(addon, capfd):
 
 INSTALL = """
 import sys
+import time
 import bpy
 
 bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -814,24 +805,42 @@ bpy.ops.extensions.package_install_files(
     filepath=sys.argv[1], repo="user_default", enable_on_install=True
 )
 import isochor
+from isochor.core import kernels
 
 print("ENABLED", "bl_ext.user_default.isochor" in bpy.context.preferences.addons.keys())
 print("FROM", isochor.__file__)
 sys.path.insert(0, sys.argv[2])
-import tests.test_blender as t  # its scene helpers (no factory reset: it would disable)
+import tests.blender_scenes as t  # the scene helpers (no factory reset: it would disable)
 
-ob, lat = t.sphere(subdivisions=2), t.lattice((4, 4, 4), "KEY_BSPLINE")
+ob, lat = t.sphere(subdivisions=5), t.lattice((6, 6, 6), "KEY_BSPLINE")
 ob.modifiers.new("Lattice", "LATTICE").object = lat
 bpy.context.view_layer.objects.active = ob
 t.pin_and_drag(lat, 0.3)
 print("SOLVE", bpy.ops.isochor.preserve_volume())
+print("FIRST", kernels.status())  # the first solve: NumPy while the child compiles
 print("RATIO", bpy.context.scene.isochor.volume_ratio)
+print("READY", kernels.ready(900), kernels.status())
+print("NUMBA", sys.modules["numba"].__file__)
+t.pin_and_drag(lat, 0.1)
+print("SOLVE2", bpy.ops.isochor.preserve_volume())
+print("RATIO2", bpy.context.scene.isochor.volume_ratio)
 """
+
+#: an interpreter holding only bpy and what bpy itself needs (make testdeps)
+BPY_ONLY = ROOT / ".venv-bpy" / "bin" / "python"
+
+
+def test_the_manifest_says_the_packages_version():
+    from blender.build import manifest_version, version
+
+    assert manifest_version() == version()
 
 
 def test_the_extension_package_builds_and_installs(tmp_path):
-    """``make addon`` (here: this platform's wheels only), validated by Blender's tool, then
-    installed into a fresh Blender user folder, enabled, and solving with its own wheels."""
+    """``make addon`` (here: this platform's zip only), validated by Blender's tool, then
+    installed into a fresh Blender user folder of an interpreter that holds only bpy,
+    enabled, and solving with its own wheels: the compiled kernels too, compiled in the
+    background into a fresh cache while the first solve runs on NumPy."""
     import subprocess
     import sys
 
@@ -845,23 +854,40 @@ def test_the_extension_package_builds_and_installs(tmp_path):
     names = zipfile.ZipFile(package).namelist()
     assert "blender_manifest.toml" in names and "__init__.py" in names
     wheels = {n.split("/")[1].split("-")[0] for n in names if n.startswith("wheels/")}
-    assert wheels == {"isochor", "scipy", "trimesh", "fast_simplification", "threadpoolctl"}
+    assert wheels == {"isochor", "scipy", "trimesh", "fast_simplification", "threadpoolctl",
+                      "numba", "llvmlite"}  # fmt: skip
     manifest = zipfile.ZipFile(package).read("blender_manifest.toml").decode()
     assert all(f'"./{n}"' in manifest for n in names if n.endswith(".whl"))
     assert "build.py" not in names
+    platform = re.search(r"^platforms = \[(.*)\]$", manifest, re.M)
+    assert platform and platform.group(1) == '"linux-x64"' and "linux_x64" in package.name
+    assert re.search(r'^copyright = \[".+"\]$', manifest, re.M)
+    licence = zipfile.ZipFile(package).read("LICENSE").decode()
+    assert "GNU GENERAL PUBLIC LICENSE" in licence and "Version 3" in licence
+    if (ROOT / "LICENSE").is_file():  # the library's own (MIT), beside the add-on's
+        assert zipfile.ZipFile(package).read("LICENSE-isochor") == (ROOT / "LICENSE").read_bytes()
     if not HAS_BASES:
         return
+    if not BPY_ONLY.exists():
+        pytest.skip("no .venv-bpy (an interpreter with bpy only): make testdeps")
     user = tmp_path / "user"
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(user)}
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(user),
+           "XDG_CACHE_HOME": str(tmp_path / "cache")}  # fmt: skip
+    env.pop("PYTHONPATH", None)
     run = subprocess.run(
-        [sys.executable, "-c", INSTALL, str(package), str(ROOT)],
-        capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path,
+        [str(BPY_ONLY), "-c", INSTALL, str(package), str(ROOT)],
+        capture_output=True, text=True, timeout=1200, env=env, cwd=tmp_path,
     )  # fmt: skip
     said = dict(line.split(" ", 1) for line in run.stdout.splitlines() if line[:1].isupper())
     assert run.returncode == 0 and said.get("ENABLED") == "True", run.stdout + run.stderr
     assert said["FROM"].startswith(str(user)), said  # isochor from the extension's wheel
+    assert said["NUMBA"].startswith(str(user)), said  # and numba
     assert said["SOLVE"] == "{'FINISHED'}"
     assert abs(float(said["RATIO"]) - 1) <= TOL_VOLUME + F32_VOLUME
+    assert said["READY"] == "True ready", said  # compiled by a child, loaded from the cache
+    assert any((tmp_path / "cache" / "isochor" / "numba").rglob("*.nbi"))
+    assert said["SOLVE2"] == "{'FINISHED'}"
+    assert abs(float(said["RATIO2"]) - 1) <= TOL_VOLUME + F32_VOLUME
 
 
 def test_blender_imports_the_sequence_glb_with_uvs_and_materials(tmp_path):
