@@ -69,7 +69,7 @@ def _scene():
     import bmesh
     import bpy
 
-    sys.path.insert(0, str(ROOT))
+    sys.path.append(str(ROOT))
     from tests.blender_scenes import lattice, pin_and_drag
 
     mesh = bpy.data.meshes.new("ball")
@@ -100,6 +100,9 @@ def _driven(job) -> tuple[float, float]:
 
 
 def child(package: str, repeats: int, out: str) -> None:
+    # the source tree's isochor/ (a package without core/: setup maps it) must not shadow
+    # the extension's wheel
+    sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != ROOT]
     import bpy
     import numpy as np
 

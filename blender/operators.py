@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import bpy
 
+from .caps import add_caps
 from .export import write_scenario
-from .scene import RigError, Target, Volumes
+from .scene import RigError, Target, Volumes, holes_capped
 from .solving import LiveSolver, Settings, Solve, bake
 
 
@@ -238,7 +239,26 @@ class ISOCHOR_OT_export_scenario(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class ISOCHOR_OT_add_caps(bpy.types.Operator):
+    """Close the active mesh's holes with Isochor's caps as real geometry, so that
+    Blender measures the volume a solve keeps"""
+
+    bl_idname = "isochor.add_caps"
+    bl_label = "Add Caps"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        try:
+            holes = add_caps(context.active_object)
+        except _errors() as exc:
+            self.report({"ERROR"}, _line(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Isochor: {holes_capped(holes)}" if holes else "Isochor: no holes")
+        return {"FINISHED"}
+
+
 CLASSES = (
+    ISOCHOR_OT_add_caps,
     ISOCHOR_OT_preserve_volume,
     ISOCHOR_OT_measure,
     ISOCHOR_OT_bake,

@@ -77,6 +77,8 @@ class VIEW3D_PT_isochor(bpy.types.Panel):
         else:
             row.label(text="Volume: not measured")
         row.operator("isochor.measure", text="", icon="FILE_REFRESH")
+        if props.holes:
+            layout.operator("isochor.add_caps", icon="MESH_DATA")
 
 
 def _lattice(context):

@@ -122,7 +122,7 @@ class Rig:
         own = clean.own_vertices
         return Solid(
             faces=clean.faces,
-            rows=_rows_at(clean.vertices[:own], self.vertices),
+            rows=rows_at(clean.vertices[:own], self.vertices),
             caps=clean.vertices[own:],
             holes=clean.cap_vertices,
         )
@@ -153,7 +153,7 @@ class Solid:
         return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
-def _rows_at(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+def rows_at(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """(p,) the row of ``vertices`` at each of ``points`` (exact copies of some rows: the
     repair welds by keeping one vertex of each group and copies the ones it splits)."""
 

@@ -690,6 +690,108 @@ def test_an_open_mesh_reads_and_keeps_its_capped_volume(addon, capfd):
     assert props.volume == pytest.approx(read, rel=F32_VOLUME) and props.holes == 1
 
 
+@needs_bases
+def test_caps_added_as_geometry_let_blender_check_the_volume_kept(addon):
+    """Add Caps on a ball with a hole: Blender's own volume of the capped mesh is the
+    capped volume Isochor reads (the same solid); after a solve Blender's volume of the
+    capped mesh under the lattice is kept."""
+    from blender.scene import Target
+
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+    bm = bmesh.new()
+    bm.from_mesh(ob.data)
+    bmesh.ops.delete(bm, geom=[f for f in bm.faces if f.calc_center_median().x > 0.6],
+                     context="FACES")  # fmt: skip
+    bm.to_mesh(ob.data)
+    bm.free()
+    bpy.context.view_layer.update()
+    isochor_says = Target.of(ob).volumes()
+    assert isochor_says.holes == 1
+    vertices = len(ob.data.vertices)
+    assert bpy.ops.isochor.add_caps() == {"FINISHED"}
+    assert len(ob.data.vertices) == vertices + 1  # the cap point, a real vertex now
+    _, holes = parts_and_holes(*arrays(ob))
+    assert holes == 0
+    blender_says = blender_volume(ob, lattice_on=False)
+    assert blender_says == pytest.approx(isochor_says.rest, rel=F32_VOLUME)
+    assert Target.of(ob).volumes().holes == 0
+    pin_and_drag(lat, 0.3)
+    assert abs(kept(ob) - 1) > 10 * TOL_VOLUME
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
+    assert bpy.ops.isochor.add_caps() == {"FINISHED"}  # closed: nothing more to add
+    assert len(ob.data.vertices) == vertices + 1
+
+
+def flat_lattice(ob, lat):
+    lat.scale = (1.0, 1.0, 0.0)
+
+
+def flat_mesh(ob, lat):
+    ob.scale = (1.0, 0.0, 1.0)
+
+
+def one_layer(ob, lat):
+    lat.data.points_w = 1
+
+
+def no_lattice_object(ob, lat):
+    ob.modifiers[0].object = None
+
+
+def a_vertex_group(ob, lat):
+    ob.vertex_groups.new(name="some")
+    ob.modifiers[0].vertex_group = "some"
+
+
+def no_faces(ob, lat):
+    bm = bmesh.new()
+    bm.from_mesh(ob.data)
+    bmesh.ops.delete(bm, geom=list(bm.faces), context="FACES_ONLY")
+    bm.to_mesh(ob.data)
+    bm.free()
+
+
+def two_lattice_modifiers(ob, lat):
+    ob.modifiers.new("Lattice.001", "LATTICE").object = lat
+
+
+def the_lattice_active_and_unused(ob, lat):
+    ob.modifiers[0].show_viewport = False
+    bpy.context.view_layer.objects.active = lat
+
+
+@needs_bases
+@pytest.mark.parametrize(
+    ("spoil", "says"),
+    [
+        (flat_lattice, r"lattice 'cage' is flat .*give it depth"),
+        (flat_mesh, r"mesh 'ball' is flat .*give it depth"),
+        (one_layer, r"has 3x3x1 points; it needs at least 2 along each axis"),
+        (no_lattice_object, r"the Lattice modifier of 'ball' has no lattice object"),
+        (a_vertex_group, r"uses a vertex group; clear it"),
+        (no_faces, r"mesh 'ball' has no faces"),
+        (two_lattice_modifiers, r"'ball' has 2 Lattice modifiers; keep one"),
+        (the_lattice_active_and_unused, r"no mesh's Lattice modifier .* uses lattice 'cage'"),
+    ],
+)
+def test_every_bad_input_is_one_line(addon, spoil, says):
+    """Each of these is one line in the report area (no traceback) for every operator
+    that reads the rig, and changes nothing (Bake may first say that nothing is keyed)."""
+    ob, lat = rigged((3, 3, 3), "KEY_BSPLINE", subdivisions=1)
+    lat.data.points.foreach_set("select", np.arange(27) < 9)
+    spoil(ob, lat)
+    bpy.context.view_layer.update()
+    before = points(lat)
+    for op in ("preserve_volume", "measure", "bake", "export_scenario"):
+        kwargs = {"filepath": "/nonexistent/never.json"} if op == "export_scenario" else {}
+        line = f"(.*{says}|no lattice point has keyframes.*)" if op == "bake" else f".*{says}"
+        with pytest.raises(RuntimeError, match=f"^Error: Isochor: {line}$") as err:
+            getattr(bpy.ops.isochor, op)(**kwargs)
+        assert len(str(err.value).strip().splitlines()) == 1, op
+    np.testing.assert_array_equal(points(lat), before)
+
+
 def test_suzanne_exported_by_blender_opens_and_squashes_with_its_parts(tmp_path):
     """Blender's Suzanne written by Blender's OBJ exporter, opened by the library and by the
     command line (this Python, out of process): its parts are its bodies, its holes are
