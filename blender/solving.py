@@ -116,7 +116,13 @@ class Solve:
         failure = _failure(self.result)
         if failure:
             raise RigError(failure)
-        if not np.array_equal(self.target.points(), self.read):
+        try:
+            now = self.target.points()
+        except ReferenceError:  # removed (or undone) while it solved
+            raise RigError(
+                "Isochor: the lattice was removed while it was solved; nothing was changed"
+            ) from None
+        if not np.array_equal(now, self.read):
             raise RigError(
                 "Isochor: the lattice changed while it was solved; nothing was changed "
                 "(press Preserve Volume again)"
