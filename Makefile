@@ -5,6 +5,9 @@ PYTHON ?= python3
 # Blender's bpy (numpy < 2, as Blender ships) in a venv of its own, for the add-on's tests
 BVENV  := .venv-blender
 BPY    := $(BVENV)/bin/python
+# bpy alone (what Blender ships: its Python and numpy), where the add-on's tests install the
+# built extension as a user does
+BONLY  := .venv-bpy
 # the Khronos glTF validator (npm gltf-validator) the glTF tests run
 JSDEPS := tests/js/node_modules/.installed
 
@@ -17,7 +20,7 @@ sysdeps:
 # what the editor needs; `make test` adds the Blender venv and the glTF validator
 venv: $(VENV)/.installed
 
-testdeps: $(BVENV)/.installed $(JSDEPS)
+testdeps: $(BVENV)/.installed $(BONLY)/.installed $(JSDEPS)
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -40,6 +43,12 @@ $(BVENV)/.installed: pyproject.toml isochor/__init__.py
 	  $(BPY) -m pip install -e '.[test,blender]' && touch $@; \
 	else echo "venv: bpy needs Python 3.11; the Blender tests will skip"; fi
 
+$(BONLY)/.installed: pyproject.toml
+	@if $(PYTHON) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; then \
+	  $(PYTHON) -m venv $(BONLY) && $(BONLY)/bin/python -m pip install -q 'bpy==5.0.1' && \
+	  touch $@; \
+	else echo "venv: bpy needs Python 3.11; the extension's install test will skip"; fi
+
 $(JSDEPS): tests/js/package.json tests/js/package-lock.json
 	@if command -v npm >/dev/null; then \
 	  cd tests/js && npm ci --no-audit --no-fund && touch node_modules/.installed; \
@@ -59,8 +68,8 @@ test: sysdeps venv testdeps
 test-blender: testdeps
 	$(BPY) -m pytest -q -p no:xvfb tests/test_blender.py $(ARGS)
 
-# the Blender extension (add-on) package: dist/isochor-VERSION.zip, wheels for every
-# platform (ARGS=--platform=current: this one only)
+# the Blender extension (add-on) packages: dist/isochor-VERSION-PLATFORM.zip, one per
+# platform with its wheels (ARGS=--platform=current: this one only)
 addon: testdeps
 	$(BPY) blender/build.py $(ARGS)
 
@@ -85,4 +94,4 @@ bench: sysdeps venv
 	$(XVFB) $(PY) -m benchmarks $(ARGS)
 
 clean:
-	rm -rf $(VENV) $(BVENV) tests/js/node_modules build dist *.egg-info .pytest_cache out
+	rm -rf $(VENV) $(BVENV) $(BONLY) tests/js/node_modules build dist *.egg-info .pytest_cache out

@@ -40,6 +40,8 @@ Session's re-solve after a nudge, the local kernels, in machine units),
 :mod:`~benchmarks.first_evaluation` (a fresh process's first evaluation while the kernels
 load) and :mod:`~benchmarks.window` (the window's rows),
 :mod:`~benchmarks.sequences` (keyframed poses),
+:mod:`~benchmarks.blender` (the Blender add-on: first use, against Blender's modifier and
+the command line; run on its own),
 :mod:`~benchmarks.constraints` (what each constraint costs: pairs, rows, measuring) with
 :mod:`~benchmarks.constraint_cases` (its cases) and :mod:`~benchmarks.constraints_report`
 (its Markdown), :mod:`~benchmarks.targets`,

@@ -4,9 +4,11 @@ Blender 4.2+; the manifest is ``blender_manifest.toml``, ``make addon`` builds t
 Modules: :mod:`.rig` (the mesh and lattice as arrays, bpy-free: point orders, the Isochor
 session, the capped solid whose volume is kept), :mod:`.scene` (reading and checking
 Blender's data, writing points, volumes),
-:mod:`.solving` (one solve, the live solver, the bake), :mod:`.operators` (Preserve Volume,
-Live, Bake, Measure), :mod:`.panel` (the sidebar panel and its settings), :mod:`.build`
-(the extension package; not shipped in it).
+:mod:`.solving` (one solve on a background thread, the live solver, the bake),
+:mod:`.export` (the scene's problem as an Isochor scenario), :mod:`.caps` (an open mesh's
+caps made real geometry), :mod:`.operators` (Preserve
+Volume, Live, Bake, Measure, Export Scenario, Add Caps), :mod:`.panel` (the sidebar panel and its
+settings), :mod:`.build` (the extension packages; not shipped in them).
 """
 
 from __future__ import annotations

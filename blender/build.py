@@ -1,11 +1,16 @@
-"""Build the Isochor extension for Blender (``make addon``): ``dist/isochor-VERSION.zip``.
+"""Build the Isochor extension for Blender (``make addon``): one zip per platform,
+``dist/isochor-VERSION-PLATFORM.zip`` (the manifest's ``platforms`` says which).
 
-The add-on's modules and manifest are staged with the wheels Blender lacks: isochor itself
-(built from this tree) and what its core needs beyond the numpy Blender ships (scipy, trimesh,
-fast-simplification, threadpoolctl), at the versions installed here, for Python 3.11 (Blender
-4.2 to 5.0) on each platform (``--platform``: ``all`` or ``current``). Blender's own extension
-tool then builds and validates the zip (``blender_ext.py build`` / ``validate`` from the
-``bpy`` package, or ``blender --command extension ...``).
+The add-on's modules, manifest and licences (the add-on's GPL-3.0-or-later ``LICENSE``, and
+the repository's MIT ``LICENSE`` as ``LICENSE-isochor`` when there is one) are staged with
+the wheels Blender lacks: isochor itself (built from this tree), what its core needs beyond
+the numpy Blender ships (scipy, trimesh, fast-simplification, threadpoolctl, at the versions
+installed here), and numba with llvmlite for the compiled kernels (Blender has no numba; the
+versions of :data:`COMPILED`), for Python 3.11 (Blender 4.2 to 5.0) on each platform
+(``--platform``: ``all`` or ``current``). Blender's own extension tool then builds one zip
+per platform (``blender_ext.py build --split-platforms``, from the ``bpy`` package, or
+``blender --command extension ...``), each holding its platform's wheels, and validates it.
+The manifest's version must be the package's (``isochor/__init__.py``).
 
     python blender/build.py [--platform all|current] [--out dist]
 """
@@ -28,8 +33,12 @@ ROOT = HERE.parent
 #: what isochor's core imports beyond numpy (Blender ships numpy; PySide6/pyvista are the
 #: editor's, not the add-on's)
 NEEDS = ("scipy", "trimesh", "fast-simplification", "threadpoolctl")
+#: the compiled kernels' compiler: numba 0.68.1 supports NumPy 1.22 to 2.5 (its wheel's
+#: requirement), so Blender's NumPy 1.24 and 1.26 (4.2 to 5.0) alike
+COMPILED = {"numba": "0.68.1", "llvmlite": "0.50.0"}
 #: Blender 4.2 to 5.0 run Python 3.11
 PYTHON = "3.11"
+#: Blender's platform names and the wheel platform each stands for
 PLATFORMS = {
     "linux-x64": "manylinux_2_28_x86_64",
     "windows-x64": "win_amd64",
@@ -59,14 +68,27 @@ def _tool() -> list[str]:
 
 
 def _platforms(which: str) -> list[str]:
+    """Blender's names of the platforms to build for."""
     if which == "all":
-        return list(PLATFORMS.values())
+        return list(PLATFORMS)
     tag = sysconfig.get_platform().replace("-", "_").replace(".", "_")
     if tag.startswith("linux"):
-        return [PLATFORMS["linux-x64"]]
+        return ["linux-x64"]
     if tag.startswith("win"):
-        return [PLATFORMS["windows-x64"]]
-    return [PLATFORMS["macos-arm64" if tag.endswith("arm64") else "macos-x64"]]
+        return ["windows-x64"]
+    return ["macos-arm64" if tag.endswith("arm64") else "macos-x64"]
+
+
+def version() -> str:
+    """The package's version (``isochor/__init__.py``)."""
+    text = (ROOT / "isochor" / "__init__.py").read_text()
+    return re.search(r'^__version__ = "(.+)"$', text, re.M).group(1)
+
+
+def manifest_version() -> str:
+    """The version the source manifest says."""
+    text = (HERE / "blender_manifest.toml").read_text()
+    return re.search(r'^version = "(.+)"$', text, re.M).group(1)
 
 
 def _pip(*args: str) -> None:
@@ -74,45 +96,68 @@ def _pip(*args: str) -> None:
 
 
 def stage(folder: Path, platforms: list[str]) -> list[str]:
-    """The add-on's files and wheels in ``folder``; returns the wheels' manifest paths."""
+    """The add-on's files, licences and wheels in ``folder``; returns the wheels'
+    manifest paths."""
     for path in HERE.iterdir():
-        if path.suffix == ".py" and path.name != "build.py" or path.name == "blender_manifest.toml":
+        if (
+            path.suffix == ".py"
+            and path.name != "build.py"
+            or path.name
+            in (
+                "blender_manifest.toml",
+                "LICENSE",
+            )
+        ):
             shutil.copy2(path, folder / path.name)
+    if (ROOT / "LICENSE").is_file():
+        shutil.copy2(ROOT / "LICENSE", folder / "LICENSE-isochor")
     wheels = folder / "wheels"
     wheels.mkdir()
     _pip("wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(wheels), str(ROOT))
     pins = [f"{name}=={importlib.metadata.version(name)}" for name in NEEDS]
+    pins += [f"{name}=={v}" for name, v in COMPILED.items()]
     for platform in platforms:
         _pip(
             "download", "--no-deps", "--only-binary=:all:", "-q", "--dest", str(wheels),
-            "--python-version", PYTHON, "--platform", platform, *pins,
+            "--python-version", PYTHON, "--platform", PLATFORMS[platform], *pins,
         )  # fmt: skip
     return sorted(f"./wheels/{w.name}" for w in wheels.glob("*.whl"))
 
 
-def build(out: Path, which: str = "all") -> Path:
+def build(out: Path, which: str = "all") -> list[Path]:
+    """The zips, one per platform (``which``: ``all`` or ``current``)."""
+    if manifest_version() != version():
+        raise SystemExit(
+            f"build: blender_manifest.toml says version {manifest_version()}, the package "
+            f"{version()}; make them equal"
+        )
     tool = _tool()
     out.mkdir(parents=True, exist_ok=True)
+    platforms = _platforms(which)
     with tempfile.TemporaryDirectory(prefix="isochor-addon-") as tmp:
         folder = Path(tmp) / "isochor"
         folder.mkdir()
-        listed = stage(folder, _platforms(which))
+        listed = stage(folder, platforms)
         manifest = folder / "blender_manifest.toml"
         text = manifest.read_text()
         lines = ",\n".join(f'  "{w}"' for w in listed)
         text = re.sub(r"^wheels = \[\]$", f"wheels = [\n{lines},\n]", text, flags=re.M)
-        version = re.search(
-            r'^__version__ = "(.+)"$', (ROOT / "isochor" / "__init__.py").read_text(), re.M
-        ).group(1)
-        text = re.sub(r'^version = ".*"$', f'version = "{version}"', text, count=1, flags=re.M)
+        names = ", ".join(f'"{p}"' for p in platforms)
+        text = re.sub(r"^platforms = \[\]$", f"platforms = [{names}]", text, flags=re.M)
         manifest.write_text(text)
-        target = out / f"isochor-{version}.zip"
+        made = out / f"isochor-{tmp.rsplit('-', 1)[-1]}"
+        made.mkdir()
         subprocess.run(
-            [*tool, "build", "--source-dir", str(folder), "--output-filepath", str(target)],
+            [*tool, "build", "--source-dir", str(folder), "--output-dir", str(made),
+             "--split-platforms"],
             check=True,
-        )
-        subprocess.run([*tool, "validate", str(target)], check=True)
-    return target
+        )  # fmt: skip
+        targets = []
+        for zipped in sorted(made.glob("*.zip")):
+            subprocess.run([*tool, "validate", str(zipped)], check=True)
+            targets.append(zipped.replace(out / zipped.name))
+        made.rmdir()
+    return targets
 
 
 def main() -> None:
@@ -120,7 +165,8 @@ def main() -> None:
     parser.add_argument("--platform", choices=("all", "current"), default="all")
     parser.add_argument("--out", type=Path, default=ROOT / "dist")
     args = parser.parse_args()
-    print(build(args.out, args.platform))
+    for target in build(args.out, args.platform):
+        print(target)
 
 
 if __name__ == "__main__":

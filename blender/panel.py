@@ -17,6 +17,15 @@ class IsochorSettings(bpy.types.PropertyGroup):
         default="SELECTED",
     )
     group: bpy.props.StringProperty(name="Group", description="The lattice's vertex group of pins")
+    preserve: bpy.props.EnumProperty(
+        name="Volumes",
+        description="How the meshes under the lattice count",
+        items=[
+            ("TOTAL", "Summed", "Keep the sum of the volumes of every mesh under the lattice"),
+            ("BODIES", "Each Body", "Keep each closed body's own volume (each mesh, each part)"),
+        ],
+        default="TOTAL",
+    )
     ratio: bpy.props.FloatProperty(
         name="Volume Ratio",
         description="The volume to keep, as a ratio of the mesh's rest volume",
@@ -47,6 +56,7 @@ class VIEW3D_PT_isochor(bpy.types.Panel):
                 layout.prop_search(props, "group", lattice, "vertex_groups")
             else:
                 layout.prop(props, "group")
+        layout.prop(props, "preserve")
         layout.prop(props, "ratio")
         row = layout.row(align=True)
         row.operator("isochor.preserve_volume", icon="MOD_LATTICE")
@@ -57,6 +67,7 @@ class VIEW3D_PT_isochor(bpy.types.Panel):
         row.prop(props, "frame_start")
         row.prop(props, "frame_end")
         box.operator("isochor.bake", icon="KEYINGSET")
+        layout.operator("isochor.export_scenario", text="Export Scenario", icon="EXPORT")
         row = layout.row()
         if props.volume_ratio:
             capped = f", {holes_capped(props.holes)}" if props.holes else ""
@@ -66,6 +77,8 @@ class VIEW3D_PT_isochor(bpy.types.Panel):
         else:
             row.label(text="Volume: not measured")
         row.operator("isochor.measure", text="", icon="FILE_REFRESH")
+        if props.holes:
+            layout.operator("isochor.add_caps", icon="MESH_DATA")
 
 
 def _lattice(context):

@@ -48,10 +48,12 @@ def blender_order(nodes: np.ndarray, shape: tuple[int, int, int]) -> np.ndarray:
 class Rig:
     """A mesh under a lattice, in the lattice object's local space, Isochor's node order.
 
-    ``vertices`` (v, 3) and ``faces`` (f, 3) the mesh as it enters the modifier; ``shape``
+    ``vertices`` (v, 3) and ``faces`` (f, 3) the meshes as they enter the modifier (one
+    after the other, ``counts`` vertices each); ``shape``
     (points u, v, w); ``basis`` the three Isochor basis names; ``origin`` (3,) and ``axes``
     (3, 3) the rest grid's box; ``nodes`` (n, 3) the points' co_deform; ``pinned`` (n,)
-    the points the solve keeps where they are."""
+    the points the solve keeps where they are; ``preserve`` Isochor's ``"total"`` (the
+    meshes' volumes summed) or ``"per-body"`` (each closed body its own)."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -62,10 +64,13 @@ class Rig:
     nodes: np.ndarray
     pinned: np.ndarray
     outside: bool = False
+    counts: tuple[int, ...] = ()
+    preserve: str = "total"
 
-    def session(self, target: float = 1.0):
+    def session(self, target: float = 1.0, progress=None):
         """An Isochor session on this rig (the model volume at the rest grid is V0): the
-        nodes where the points are, the pinned ones fixed."""
+        nodes where the points are, the pinned ones fixed; ``progress(stage, fraction)``
+        as :class:`isochor.Session` calls it."""
         import isochor
 
         options = {"outside": True} if self.outside else {}
@@ -75,6 +80,8 @@ class Rig:
             basis=self.basis,
             frame=(self.origin, self.axes),
             target=target,
+            preserve=self.preserve,
+            progress=progress,
             **options,
         )
         self.load(session)
@@ -115,7 +122,7 @@ class Rig:
         own = clean.own_vertices
         return Solid(
             faces=clean.faces,
-            rows=_rows_at(clean.vertices[:own], self.vertices),
+            rows=rows_at(clean.vertices[:own], self.vertices),
             caps=clean.vertices[own:],
             holes=clean.cap_vertices,
         )
@@ -146,7 +153,7 @@ class Solid:
         return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
-def _rows_at(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+def rows_at(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """(p,) the row of ``vertices`` at each of ``points`` (exact copies of some rows: the
     repair welds by keeping one vertex of each group and copies the ones it splits)."""
 

@@ -1,9 +1,12 @@
-"""The add-on's solves on a :class:`~.scene.Target`: one solve, the live solver that
+"""The add-on's solves on a :class:`~.scene.Target`: one solve on a background thread
+(:class:`Solve`: Blender's data read before it starts and written after it ends, both on
+Blender's main thread; the thread runs Isochor on arrays only), the live solver that
 re-solves while pinned points move (coarse levels first), and the bake of a frame range.
 Nothing is written to Blender's data until a solve has converged."""
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass
 
@@ -21,6 +24,7 @@ class Settings:
     pins: str = "SELECTED"  #: "SELECTED" points or a vertex "GROUP"
     group: str = ""
     ratio: float = 1.0  #: the target volume / the rest volume
+    preserve: str = "total"  #: the meshes' volumes summed, or "per-body": each its own
 
 
 def _failure(result) -> str | None:
@@ -29,21 +33,111 @@ def _failure(result) -> str | None:
     return f"Isochor: the solve did not converge ({result.message}); nothing was changed"
 
 
-def solve_once(target: Target, settings: Settings) -> float:
-    """Solve the free points so the mesh under the modifier has ``ratio`` times its rest
-    volume; write them. Returns the relative volume error Isochor measured."""
-    rig = target.rig(settings.pins, settings.group)
+def check_pins(rig) -> None:
     if not rig.pinned.any():
         raise RigError("Isochor: pin some lattice points first (select them, or a vertex group)")
     if rig.pinned.all():
         raise RigError("Isochor: every lattice point is pinned; nothing is free to solve")
-    session = rig.session(settings.ratio)
-    result = session.solve()
-    failure = _failure(result)
-    if failure:
-        raise RigError(failure)
-    target.write(rig.shown(session, result.nodes), rig.written())
-    return float(result.rel_volume_error)
+
+
+class _CancelledError(Exception):
+    """Raised in the solving thread by its progress callback once Esc was pressed."""
+
+
+class Solve:
+    """One Preserve Volume solve on a background thread, so that Blender's interface never
+    waits for it. Made on Blender's main thread, it reads the rig (bpy) and starts the
+    thread, which builds the Isochor session and solves on arrays only (NumPy, or the
+    compiled kernels, which release the GIL). The main thread asks :attr:`running`,
+    :attr:`stage` and :attr:`fraction` (a timer, for the status bar), may :meth:`cancel`,
+    and once the thread has ended calls :meth:`finish`, which writes the result: nothing
+    is written before, so a cancelled or failed solve leaves the scene as it was."""
+
+    def __init__(self, target: Target, settings: Settings) -> None:
+        self.target, self.settings = target, settings
+        self.rig = target.rig(settings.pins, settings.group)
+        self.rig.preserve = settings.preserve
+        check_pins(self.rig)
+        self.free = self.rig.written()
+        self.read = target.points()  #: the points as the solve read them
+        self.stage, self.fraction = "load", 0.0
+        self.result = None
+        self.nodes: np.ndarray | None = None
+        self.error: BaseException | None = None
+        self._cancel = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="isochor-solve", daemon=True)
+        self._thread.start()
+
+    def _progress(self, stage: str, fraction: float) -> None:
+        if self._cancel.is_set():
+            raise _CancelledError
+        self.stage, self.fraction = stage, fraction
+
+    def _run(self) -> None:
+        try:
+            session = self.rig.session(self.settings.ratio, self._progress)
+            result = session.solve()
+            if result.converged:
+                self.nodes = self.rig.shown(session, result.nodes)
+            self.result = result
+        except _CancelledError:
+            pass
+        except Exception as exc:  # handed to the main thread: finish() raises it
+            self.error = exc
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    @property
+    def cancelled(self) -> bool:
+        return self._cancel.is_set()
+
+    def cancel(self) -> None:
+        """Stop at the next progress report (the thread ends soon after)."""
+        self._cancel.set()
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Wait for the thread; True once it has ended."""
+        self._thread.join(timeout)
+        return not self.running
+
+    def finish(self) -> float:
+        """On the main thread, once the thread has ended: write the solved points; returns
+        the relative volume error Isochor measured. Raises the solve's error (one line),
+        or :class:`RigError` when it was cancelled, did not converge, or the lattice
+        changed while it ran; nothing is written then."""
+        if self.running:
+            raise RuntimeError("finish() before the solving thread ended")
+        if self.error is not None:
+            raise self.error
+        if self.cancelled or self.result is None:
+            raise RigError("Isochor: cancelled; nothing was changed")
+        failure = _failure(self.result)
+        if failure:
+            raise RigError(failure)
+        try:
+            now = self.target.points()
+        except ReferenceError:  # removed (or undone) while it solved
+            raise RigError(
+                "Isochor: the lattice was removed while it was solved; nothing was changed"
+            ) from None
+        if not np.array_equal(now, self.read):
+            raise RigError(
+                "Isochor: the lattice changed while it was solved; nothing was changed "
+                "(press Preserve Volume again)"
+            )
+        self.target.write(self.nodes, self.free)
+        return float(self.result.rel_volume_error)
+
+
+def solve_once(target: Target, settings: Settings) -> float:
+    """Solve the free points so the meshes under the modifier have ``ratio`` times their
+    rest volume, waiting for the thread; write them. Returns the relative volume error
+    Isochor measured."""
+    job = Solve(target, settings)
+    job.wait()
+    return job.finish()
 
 
 class LiveSolver:
@@ -54,6 +148,7 @@ class LiveSolver:
     def __init__(self, target: Target, settings: Settings) -> None:
         self.target, self.settings = target, settings
         self.rig = target.rig(settings.pins, settings.group)
+        self.rig.preserve = settings.preserve
         self.session = self.rig.session(settings.ratio)
         self.steps = None
         self.seen: tuple[bytes, bytes] | None = None
@@ -117,6 +212,7 @@ def bake(target: Target, settings: Settings, start: int, end: int) -> list[float
         for frame in range(start, end + 1):
             scene.frame_set(frame)
             rig = target.rig(settings.pins, settings.group, extra_pins=keyed)
+            rig.preserve = settings.preserve
             if rig.pinned.all():
                 raise RigError("Isochor: every lattice point is pinned; nothing is free to solve")
             if session is None:

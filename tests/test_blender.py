@@ -7,6 +7,7 @@ numpy < 2, as Blender ships) and ``make test`` runs this file there; elsewhere i
 from __future__ import annotations
 
 import os
+import re
 import zipfile
 from pathlib import Path
 
@@ -21,6 +22,7 @@ import bmesh  # noqa: E402  (Blender's, after bpy)
 
 from isochor.core.defaults import TOL_VOLUME  # noqa: E402
 from isochor.core.lattice import Lattice  # noqa: E402
+from tests.blender_scenes import empty_scene, lattice, pin_and_drag, sphere  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Blender evaluates the modifier in float32: a volume measured from its output is this close
@@ -41,34 +43,6 @@ def addon():
     blender.register()
     yield blender
     blender.unregister()
-
-
-def empty_scene() -> None:
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-
-
-def sphere(name: str = "ball", subdivisions: int = 3, radius: float = 0.8):
-    mesh = bpy.data.meshes.new(name)
-    bm = bmesh.new()
-    bmesh.ops.create_icosphere(bm, subdivisions=subdivisions, radius=radius)
-    bm.to_mesh(mesh)
-    bm.free()
-    ob = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(ob)
-    return ob
-
-
-def lattice(shape, kind: str, size=(2.0, 2.0, 2.0), name: str = "cage"):
-    """A lattice object of ``shape`` points whose rest grid spans ``size`` about the origin."""
-    data = bpy.data.lattices.new(name)
-    data.points_u, data.points_v, data.points_w = shape
-    for axis in "uvw":
-        setattr(data, f"interpolation_type_{axis}", kind)
-    ob = bpy.data.objects.new(name, data)
-    bpy.context.scene.collection.objects.link(ob)
-    first, last = np.array(data.points[0].co), np.array(data.points[-1].co)
-    ob.scale = tuple(np.asarray(size) / (last - first))
-    return ob
 
 
 def rigged(shape, kind, **mesh):
@@ -112,7 +86,7 @@ def ffd_case(kind: str, shape, outside: bool = False):
     rotated, moved lattice object: (Blender's evaluated modifier output, Isochor's FFD of
     the same points, the points' size)."""
     from blender.rig import BASES, isochor_order
-    from blender.scene import Target
+    from blender.scene import Target, User
 
     empty_scene()
     rng = np.random.default_rng(abs(hash((kind, shape, outside))) % 2**32)
@@ -132,7 +106,7 @@ def ffd_case(kind: str, shape, outside: bool = False):
         lat.data.use_outside = True
         moved = points(lat)
     bpy.context.view_layer.update()
-    target = Target(ob, mod, lat)
+    target = Target(lat, (User(ob, mod),))
     to_lat, rest = target.to_lattice(), target.rest()
     options = {"outside": True} if outside else {}
     ffd = Lattice(shape, rest[0], np.diag(rest[-1] - rest[0]), basis=BASES[kind], **options)
@@ -237,7 +211,7 @@ def test_bad_input_is_one_line_and_changes_nothing(addon):
     mod.object = lat
     mod.strength = 0.5
     before = points(lat)
-    with pytest.raises(RuntimeError, match=r"strength is 0.5; set it to 1$"):
+    with pytest.raises(RuntimeError, match=r"has strength 0.5; set it to 1$"):
         bpy.ops.isochor.preserve_volume()
     mod.strength = 1.0
     with pytest.raises(RuntimeError, match=r"pin some lattice points first"):
@@ -265,22 +239,6 @@ def test_a_mesh_that_cannot_be_closed_is_one_line(addon):
         bpy.ops.isochor.preserve_volume()
     assert len(str(err.value).strip().splitlines()) == 1
     np.testing.assert_array_equal(points(lat), before)
-
-
-def pin_and_drag(lat, lift: float) -> np.ndarray:
-    """Pins the bottom two layers (w = 0, 1) and the top layer's middle points, moved up by
-    ``lift`` of the lattice's height; returns the pinned mask (Blender's order)."""
-    data = lat.data
-    pu, pv, pw = data.points_u, data.points_v, data.points_w
-    w, v, u = np.unravel_index(np.arange(len(data.points)), (pw, pv, pu))
-    middle = (np.abs(u - (pu - 1) / 2) <= 0.5) & (np.abs(v - (pv - 1) / 2) <= 0.5)
-    dragged = (w == pw - 1) & middle
-    pinned = (w <= 1) | dragged
-    data.points.foreach_set("select", pinned)
-    height = data.points[-1].co[2] - data.points[0].co[2]
-    for i in np.flatnonzero(dragged):
-        data.points[int(i)].co_deform.z += lift * height
-    return pinned
 
 
 @needs_bases
@@ -388,6 +346,240 @@ def test_a_24_frame_bake_keeps_each_frames_volume(addon):
     bpy.context.scene.frame_set(12)
     assert abs(points(lat)[-1, 2] - (data.points[-1].co.z + 0.35 * height)) < 1e-5  # the key
     assert lat["isochor_baked"]  # a re-bake does not take these for pins
+
+
+# --- what the modifier deforms: shape keys, rigs, several meshes; Edit Mode ---------------
+
+
+def blender_volume(ob, lattice_on: bool = True) -> float:
+    """The volume of ``ob`` as Blender evaluates it, in world units, by Blender's own
+    ``bmesh.calc_volume`` (the Lattice modifier on, or switched off: the modifier's input)."""
+    mod = next(m for m in ob.modifiers if m.type == "LATTICE")
+    mod.show_viewport = lattice_on
+    try:
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        depsgraph.update()
+        ev = ob.evaluated_get(depsgraph)
+        bm = bmesh.new()
+        bm.from_mesh(ev.to_mesh())
+        ev.to_mesh_clear()
+        bm.transform(ob.matrix_world)
+        try:
+            return bm.calc_volume(signed=True)
+        finally:
+            bm.free()
+    finally:
+        mod.show_viewport = True
+
+
+def kept(ob) -> float:
+    """Blender's volume of the lattice's output over that of its input."""
+    return blender_volume(ob) / blender_volume(ob, lattice_on=False)
+
+
+@needs_bases
+def test_a_shape_key_at_value_1_is_what_is_solved(addon):
+    """A shape key that swells the top of the ball, at value 1: the modifier deforms the
+    keyed shape, so that is the volume kept (Blender's, not the Basis shape's)."""
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+    ob.shape_key_add(name="Basis")
+    key = ob.shape_key_add(name="swell")
+    for point in key.data:
+        if point.co.z > 0:
+            point.co = (point.co.x * 1.3, point.co.y * 1.3, point.co.z * 1.2)
+    key.value = 1.0
+    bpy.context.view_layer.update()
+    keyed = blender_volume(ob, lattice_on=False)
+    ob.data.shape_keys.key_blocks["swell"].mute = True
+    basis = blender_volume(ob, lattice_on=False)
+    ob.data.shape_keys.key_blocks["swell"].mute = False
+    assert keyed / basis - 1 > 0.2  # the key changes the solid a lot
+    pin_and_drag(lat, 0.3)
+    assert abs(kept(ob) - 1) > 10 * TOL_VOLUME
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
+    assert bpy.context.scene.isochor.volume == pytest.approx(blender_volume(ob), rel=F32_VOLUME)
+
+
+@needs_bases
+def test_an_armature_then_the_lattice(addon):
+    """The usual character stack: an Armature modifier (a posed bone that moves and
+    grows the upper half) before the Lattice modifier; the posed shape's volume is kept."""
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+    arm_data = bpy.data.armatures.new("rig")
+    arm = bpy.data.objects.new("rig", arm_data)
+    bpy.context.scene.collection.objects.link(arm)
+    bpy.context.view_layer.objects.active = arm
+    bpy.ops.object.mode_set(mode="EDIT")
+    bone = arm_data.edit_bones.new("top")
+    bone.head, bone.tail = (0, 0, 0), (0, 0, 0.5)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    group = ob.vertex_groups.new(name="top")
+    z = np.array([v.co.z for v in ob.data.vertices])
+    for i in np.flatnonzero(z > 0):
+        group.add([int(i)], float(min(1.0, 3 * z[i])), "REPLACE")
+    mod = ob.modifiers.new("Armature", "ARMATURE")
+    mod.object = arm
+    ob.modifiers.move(len(ob.modifiers) - 1, 0)  # before the Lattice modifier
+    assert [m.type for m in ob.modifiers] == ["ARMATURE", "LATTICE"]
+    pose = arm.pose.bones["top"]
+    pose.scale = (1.25, 1.25, 1.25)
+    pose.location = (0.05, 0.1, 0.0)
+    bpy.context.view_layer.objects.active = ob
+    bpy.context.view_layer.update()
+    ob.modifiers["Armature"].show_viewport = False
+    unposed = blender_volume(ob, lattice_on=False)
+    ob.modifiers["Armature"].show_viewport = True
+    assert blender_volume(ob, lattice_on=False) / unposed - 1 > 0.1  # the pose grew it
+    pin_and_drag(lat, 0.3)
+    assert abs(kept(ob) - 1) > 10 * TOL_VOLUME
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
+
+
+def two_balls():
+    """Two balls of different sizes side by side under one lattice; the big one active."""
+    ob, lat = rigged((5, 4, 4), "KEY_BSPLINE", subdivisions=3, radius=0.45)
+    ob.location = (-0.45, 0, 0)
+    small = sphere("small", subdivisions=3, radius=0.3)
+    small.location = (0.5, 0, 0)
+    small.modifiers.new("Lattice", "LATTICE").object = lat
+    bpy.context.view_layer.update()
+    return ob, small, lat
+
+
+@needs_bases
+@pytest.mark.parametrize("preserve", ["TOTAL", "BODIES"])
+def test_two_meshes_under_one_lattice(addon, preserve):
+    """Both meshes count: their volumes summed, or each its own, as the panel says."""
+    ob, small, lat = two_balls()
+    props = bpy.context.scene.isochor
+    props.preserve = preserve
+    data = lat.data
+    u = np.arange(len(data.points)) % data.points_u
+    data.points.foreach_set("select", u <= 1)  # the left two layers pinned
+    for i in np.flatnonzero(u == 0):  # ... and squashed towards the middle
+        data.points[int(i)].co_deform.x += 0.12
+    bpy.context.view_layer.update()
+    try:
+        rest = [blender_volume(o, lattice_on=False) for o in (ob, small)]
+        assert abs(blender_volume(ob) / rest[0] - 1) > 10 * TOL_VOLUME
+        assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+        now = [blender_volume(o) for o in (ob, small)]
+    finally:
+        props.preserve = "TOTAL"
+    assert abs(sum(now) / sum(rest) - 1) <= TOL_VOLUME + F32_VOLUME
+    each = [n / r - 1 for n, r in zip(now, rest, strict=True)]
+    if preserve == "BODIES":
+        assert max(map(abs, each)) <= TOL_VOLUME + F32_VOLUME, each
+    else:  # summed: the free right side grows the small ball to make up the big one's loss
+        assert max(map(abs, each)) > 10 * TOL_VOLUME, each
+    # the lattice active: the same rig, both meshes
+    bpy.context.view_layer.objects.active = lat
+    assert bpy.ops.isochor.measure() == {"FINISHED"}
+    assert props.volume == pytest.approx(sum(now), rel=F32_VOLUME)
+
+
+def edit_drag(lat, lift: float) -> np.ndarray:
+    """In the lattice's Edit Mode: select the pins and lift the top middle, as
+    :func:`pin_and_drag` does, through the edit lattice (whose points' ``co`` Blender
+    does not read as the rest grid: the height is taken before)."""
+    height = lat.data.points[-1].co[2] - lat.data.points[0].co[2]
+    bpy.context.view_layer.objects.active = lat
+    assert bpy.ops.object.mode_set(mode="EDIT") == {"FINISHED"}
+    assert lat.data.is_editmode
+    return pin_and_drag(lat, lift, height)
+
+
+@needs_bases
+@pytest.mark.parametrize("active", ["lattice", "mesh"])
+def test_edit_mode(addon, active):
+    """Pins selected and points moved in the lattice's Edit Mode, with the lattice or the
+    mesh active: the solve reads them as the artist sees them, the result shows in Edit
+    Mode (Blender's evaluated mesh keeps its volume) and stays after leaving it."""
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+    pinned = edit_drag(lat, 0.3)
+    if active == "mesh":
+        bpy.context.view_layer.objects.active = ob
+    assert lat.mode == "EDIT"
+    before = points(lat)
+    assert abs(kept(ob) - 1) > 10 * TOL_VOLUME  # the edit shows: the drag changed it
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    assert lat.mode == "EDIT"
+    in_edit = points(lat)
+    np.testing.assert_array_equal(in_edit[pinned], before[pinned])
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME  # seen in Edit Mode
+    bpy.context.view_layer.objects.active = lat
+    assert bpy.ops.object.mode_set(mode="OBJECT") == {"FINISHED"}
+    np.testing.assert_array_equal(points(lat), in_edit)  # kept after leaving
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
+
+
+@needs_bases
+def test_the_solve_runs_beside_blender_and_esc_cancels(addon):
+    """What the modal operator's timer drives (Blender without a window runs no modal
+    operator): the solve's thread runs while Blender's main thread goes on evaluating the
+    scene, nothing is written until it ends, its result is Blender's kept volume; a
+    cancel (Esc) ends the thread and leaves the points as they were."""
+    from blender.scene import RigError, Target
+    from blender.solving import Settings, Solve
+
+    ob, lat = rigged((8, 8, 8), "KEY_BSPLINE", subdivisions=5)
+    pin_and_drag(lat, 0.3)
+    bpy.context.view_layer.update()
+    before, dragged = points(lat), blender_volume(ob)
+    job = Solve(Target.of(ob), Settings())
+    turns, stages = 0, []
+    while job.running:  # the timer's turns: Blender's own work between them
+        assert blender_volume(ob) == dragged  # the scene is untouched while it solves
+        stages.append((job.stage, job.fraction))
+        turns += 1
+        job.wait(0.02)
+    assert turns >= 1 and stages[0][0] == "load"
+    np.testing.assert_array_equal(points(lat), before)
+    job.finish()
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
+    solved = points(lat)
+    job = Solve(Target.of(ob), Settings(ratio=1.3))
+    job.cancel()
+    assert job.wait(60)
+    with pytest.raises(RigError, match="^Isochor: cancelled; nothing was changed$"):
+        job.finish()
+    np.testing.assert_array_equal(points(lat), solved)
+
+
+@needs_bases
+def test_the_exported_scenario_solves_the_same_in_isochor_solve(addon, tmp_path):
+    """Export Scenario, then ``isochor solve`` on it (out of process): both converge and
+    the command's mesh is the one Blender's modifier shows after the add-on's solve,
+    within the solver's node tolerance of the lattice's size."""
+    import json
+    import subprocess
+    import sys
+
+    from isochor.core.defaults import TOL_NODES
+    from tests.test_caps import read_back
+
+    ob, lat = rigged((5, 5, 5), "KEY_BSPLINE", subdivisions=4)
+    pin_and_drag(lat, 0.3)
+    path = tmp_path / "ball.json"
+    assert bpy.ops.isochor.export_scenario(filepath=str(path)) == {"FINISHED"}
+    assert json.loads(path.read_text())["model"]["path"] == "ball.obj"
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    run = subprocess.run(
+        [sys.executable, "-m", "isochor.app.cli.main", "solve", str(path), "--out",
+         str(tmp_path / "out.obj"), "--report", str(tmp_path / "r.json")],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert json.loads((tmp_path / "r.json").read_text())["converged"]
+    cli, _ = read_back(tmp_path / "out.obj")
+    from blender.scene import Target
+
+    target = Target.of(ob)
+    (shown,) = target.outputs()  # Blender's evaluated mesh, in the lattice's space
+    size = np.ptp(target.rest(), axis=0).max()
+    assert np.abs(cli - shown).max() <= TOL_NODES * size
 
 
 # --- open meshes: the capped volume, Blender's Suzanne -----------------------------------
@@ -498,6 +690,108 @@ def test_an_open_mesh_reads_and_keeps_its_capped_volume(addon, capfd):
     assert props.volume == pytest.approx(read, rel=F32_VOLUME) and props.holes == 1
 
 
+@needs_bases
+def test_caps_added_as_geometry_let_blender_check_the_volume_kept(addon):
+    """Add Caps on a ball with a hole: Blender's own volume of the capped mesh is the
+    capped volume Isochor reads (the same solid); after a solve Blender's volume of the
+    capped mesh under the lattice is kept."""
+    from blender.scene import Target
+
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+    bm = bmesh.new()
+    bm.from_mesh(ob.data)
+    bmesh.ops.delete(bm, geom=[f for f in bm.faces if f.calc_center_median().x > 0.6],
+                     context="FACES")  # fmt: skip
+    bm.to_mesh(ob.data)
+    bm.free()
+    bpy.context.view_layer.update()
+    isochor_says = Target.of(ob).volumes()
+    assert isochor_says.holes == 1
+    vertices = len(ob.data.vertices)
+    assert bpy.ops.isochor.add_caps() == {"FINISHED"}
+    assert len(ob.data.vertices) == vertices + 1  # the cap point, a real vertex now
+    _, holes = parts_and_holes(*arrays(ob))
+    assert holes == 0
+    blender_says = blender_volume(ob, lattice_on=False)
+    assert blender_says == pytest.approx(isochor_says.rest, rel=F32_VOLUME)
+    assert Target.of(ob).volumes().holes == 0
+    pin_and_drag(lat, 0.3)
+    assert abs(kept(ob) - 1) > 10 * TOL_VOLUME
+    assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+    assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
+    assert bpy.ops.isochor.add_caps() == {"FINISHED"}  # closed: nothing more to add
+    assert len(ob.data.vertices) == vertices + 1
+
+
+def flat_lattice(ob, lat):
+    lat.scale = (1.0, 1.0, 0.0)
+
+
+def flat_mesh(ob, lat):
+    ob.scale = (1.0, 0.0, 1.0)
+
+
+def one_layer(ob, lat):
+    lat.data.points_w = 1
+
+
+def no_lattice_object(ob, lat):
+    ob.modifiers[0].object = None
+
+
+def a_vertex_group(ob, lat):
+    ob.vertex_groups.new(name="some")
+    ob.modifiers[0].vertex_group = "some"
+
+
+def no_faces(ob, lat):
+    bm = bmesh.new()
+    bm.from_mesh(ob.data)
+    bmesh.ops.delete(bm, geom=list(bm.faces), context="FACES_ONLY")
+    bm.to_mesh(ob.data)
+    bm.free()
+
+
+def two_lattice_modifiers(ob, lat):
+    ob.modifiers.new("Lattice.001", "LATTICE").object = lat
+
+
+def the_lattice_active_and_unused(ob, lat):
+    ob.modifiers[0].show_viewport = False
+    bpy.context.view_layer.objects.active = lat
+
+
+@needs_bases
+@pytest.mark.parametrize(
+    ("spoil", "says"),
+    [
+        (flat_lattice, r"lattice 'cage' is flat .*give it depth"),
+        (flat_mesh, r"mesh 'ball' is flat .*give it depth"),
+        (one_layer, r"has 3x3x1 points; it needs at least 2 along each axis"),
+        (no_lattice_object, r"the Lattice modifier of 'ball' has no lattice object"),
+        (a_vertex_group, r"uses a vertex group; clear it"),
+        (no_faces, r"mesh 'ball' has no faces"),
+        (two_lattice_modifiers, r"'ball' has 2 Lattice modifiers; keep one"),
+        (the_lattice_active_and_unused, r"no mesh's Lattice modifier .* uses lattice 'cage'"),
+    ],
+)
+def test_every_bad_input_is_one_line(addon, spoil, says):
+    """Each of these is one line in the report area (no traceback) for every operator
+    that reads the rig, and changes nothing (Bake may first say that nothing is keyed)."""
+    ob, lat = rigged((3, 3, 3), "KEY_BSPLINE", subdivisions=1)
+    lat.data.points.foreach_set("select", np.arange(27) < 9)
+    spoil(ob, lat)
+    bpy.context.view_layer.update()
+    before = points(lat)
+    for op in ("preserve_volume", "measure", "bake", "export_scenario"):
+        kwargs = {"filepath": "/nonexistent/never.json"} if op == "export_scenario" else {}
+        line = f"(.*{says}|no lattice point has keyframes.*)" if op == "bake" else f".*{says}"
+        with pytest.raises(RuntimeError, match=f"^Error: Isochor: {line}$") as err:
+            getattr(bpy.ops.isochor, op)(**kwargs)
+        assert len(str(err.value).strip().splitlines()) == 1, op
+    np.testing.assert_array_equal(points(lat), before)
+
+
 def test_suzanne_exported_by_blender_opens_and_squashes_with_its_parts(tmp_path):
     """Blender's Suzanne written by Blender's OBJ exporter, opened by the library and by the
     command line (this Python, out of process): its parts are its bodies, its holes are
@@ -605,6 +899,7 @@ def test_the_addon_keeps_suzannes_capped_volume(addon, capfd):
 
 INSTALL = """
 import sys
+import time
 import bpy
 
 bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -612,24 +907,42 @@ bpy.ops.extensions.package_install_files(
     filepath=sys.argv[1], repo="user_default", enable_on_install=True
 )
 import isochor
+from isochor.core import kernels
 
 print("ENABLED", "bl_ext.user_default.isochor" in bpy.context.preferences.addons.keys())
 print("FROM", isochor.__file__)
 sys.path.insert(0, sys.argv[2])
-import tests.test_blender as t  # its scene helpers (no factory reset: it would disable)
+import tests.blender_scenes as t  # the scene helpers (no factory reset: it would disable)
 
-ob, lat = t.sphere(subdivisions=2), t.lattice((4, 4, 4), "KEY_BSPLINE")
+ob, lat = t.sphere(subdivisions=5), t.lattice((6, 6, 6), "KEY_BSPLINE")
 ob.modifiers.new("Lattice", "LATTICE").object = lat
 bpy.context.view_layer.objects.active = ob
 t.pin_and_drag(lat, 0.3)
 print("SOLVE", bpy.ops.isochor.preserve_volume())
+print("FIRST", kernels.status())  # the first solve: NumPy while the child compiles
 print("RATIO", bpy.context.scene.isochor.volume_ratio)
+print("READY", kernels.ready(900), kernels.status())
+print("NUMBA", sys.modules["numba"].__file__)
+t.pin_and_drag(lat, 0.1)
+print("SOLVE2", bpy.ops.isochor.preserve_volume())
+print("RATIO2", bpy.context.scene.isochor.volume_ratio)
 """
+
+#: an interpreter holding only bpy and what bpy itself needs (make testdeps)
+BPY_ONLY = ROOT / ".venv-bpy" / "bin" / "python"
+
+
+def test_the_manifest_says_the_packages_version():
+    from blender.build import manifest_version, version
+
+    assert manifest_version() == version()
 
 
 def test_the_extension_package_builds_and_installs(tmp_path):
-    """``make addon`` (here: this platform's wheels only), validated by Blender's tool, then
-    installed into a fresh Blender user folder, enabled, and solving with its own wheels."""
+    """``make addon`` (here: this platform's zip only), validated by Blender's tool, then
+    installed into a fresh Blender user folder of an interpreter that holds only bpy,
+    enabled, and solving with its own wheels: the compiled kernels too, compiled in the
+    background into a fresh cache while the first solve runs on NumPy."""
     import subprocess
     import sys
 
@@ -643,23 +956,40 @@ def test_the_extension_package_builds_and_installs(tmp_path):
     names = zipfile.ZipFile(package).namelist()
     assert "blender_manifest.toml" in names and "__init__.py" in names
     wheels = {n.split("/")[1].split("-")[0] for n in names if n.startswith("wheels/")}
-    assert wheels == {"isochor", "scipy", "trimesh", "fast_simplification", "threadpoolctl"}
+    assert wheels == {"isochor", "scipy", "trimesh", "fast_simplification", "threadpoolctl",
+                      "numba", "llvmlite"}  # fmt: skip
     manifest = zipfile.ZipFile(package).read("blender_manifest.toml").decode()
     assert all(f'"./{n}"' in manifest for n in names if n.endswith(".whl"))
     assert "build.py" not in names
+    platform = re.search(r"^platforms = \[(.*)\]$", manifest, re.M)
+    assert platform and platform.group(1) == '"linux-x64"' and "linux_x64" in package.name
+    assert re.search(r'^copyright = \[".+"\]$', manifest, re.M)
+    licence = zipfile.ZipFile(package).read("LICENSE").decode()
+    assert "GNU GENERAL PUBLIC LICENSE" in licence and "Version 3" in licence
+    if (ROOT / "LICENSE").is_file():  # the library's own (MIT), beside the add-on's
+        assert zipfile.ZipFile(package).read("LICENSE-isochor") == (ROOT / "LICENSE").read_bytes()
     if not HAS_BASES:
         return
+    if not BPY_ONLY.exists():
+        pytest.skip("no .venv-bpy (an interpreter with bpy only): make testdeps")
     user = tmp_path / "user"
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(user)}
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(user),
+           "XDG_CACHE_HOME": str(tmp_path / "cache")}  # fmt: skip
+    env.pop("PYTHONPATH", None)
     run = subprocess.run(
-        [sys.executable, "-c", INSTALL, str(package), str(ROOT)],
-        capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path,
+        [str(BPY_ONLY), "-c", INSTALL, str(package), str(ROOT)],
+        capture_output=True, text=True, timeout=1200, env=env, cwd=tmp_path,
     )  # fmt: skip
     said = dict(line.split(" ", 1) for line in run.stdout.splitlines() if line[:1].isupper())
     assert run.returncode == 0 and said.get("ENABLED") == "True", run.stdout + run.stderr
     assert said["FROM"].startswith(str(user)), said  # isochor from the extension's wheel
+    assert said["NUMBA"].startswith(str(user)), said  # and numba
     assert said["SOLVE"] == "{'FINISHED'}"
     assert abs(float(said["RATIO"]) - 1) <= TOL_VOLUME + F32_VOLUME
+    assert said["READY"] == "True ready", said  # compiled by a child, loaded from the cache
+    assert any((tmp_path / "cache" / "isochor" / "numba").rglob("*.nbi"))
+    assert said["SOLVE2"] == "{'FINISHED'}"
+    assert abs(float(said["RATIO2"]) - 1) <= TOL_VOLUME + F32_VOLUME
 
 
 def test_blender_imports_the_sequence_glb_with_uvs_and_materials(tmp_path):

@@ -40,7 +40,7 @@ def compile_in_child(marker: Path, module: str) -> None:
         if marker.exists() or not take(lock):
             return
     cmd = [sys.executable, "-m", module, "--compile", str(marker)]
-    env = dict(os.environ, **{ENV_OFF: ""})
+    env = dict(os.environ, **{ENV_OFF: "", "PYTHONPATH": child_path()})
     try:
         done = subprocess.run(cmd, capture_output=True, timeout=COMPILE_LIMIT, env=env)
     except subprocess.TimeoutExpired as exc:
@@ -51,6 +51,13 @@ def compile_in_child(marker: Path, module: str) -> None:
         lock.unlink(missing_ok=True)
     if done.returncode < 0:
         raise RuntimeError(f"the compiler crashed (signal {-done.returncode}) in a child process")
+
+
+def child_path() -> str:
+    """The child's PYTHONPATH: this program's import path, so that it finds isochor and
+    numba where this one did (inside Blender, the extension's own site-packages, which
+    Blender adds to its path and a fresh interpreter would not)."""
+    return os.pathsep.join(p for p in sys.path if p and os.path.isdir(p))
 
 
 def lock_of(marker: Path) -> Path:
