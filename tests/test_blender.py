@@ -642,19 +642,25 @@ def suzanne():
     return bpy.context.active_object
 
 
-@needs_bases
-def test_an_open_mesh_reads_and_keeps_its_capped_volume(addon, capfd):
-    """A ball with a hole: the solve keeps the capped volume, the read-out measures it (not
-    the open surface's sum, which moves with the origin) and the report line says so."""
-    from tests.test_caps import CAP_SLACK, capped_volume
-
-    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=2)
+def holed_ball(subdivisions: int):
+    """A ball under a 4^3 B-spline lattice with the faces beyond x = 0.6 deleted: one hole."""
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=subdivisions)
     bm = bmesh.new()
     bm.from_mesh(ob.data)
     bmesh.ops.delete(bm, geom=[f for f in bm.faces if f.calc_center_median().x > 0.6],
                      context="FACES")  # fmt: skip
     bm.to_mesh(ob.data)
     bm.free()
+    return ob, lat
+
+
+@needs_bases
+def test_an_open_mesh_reads_and_keeps_its_capped_volume(addon, capfd):
+    """A ball with a hole: the solve keeps the capped volume, the read-out measures it (not
+    the open surface's sum, which moves with the origin) and the report line says so."""
+    from tests.test_caps import CAP_SLACK, capped_volume
+
+    ob, lat = holed_ball(subdivisions=2)
     rest, faces = arrays(ob)
     at_rest = capped_volume(rest, faces)
     pin_and_drag(lat, 0.3)
@@ -697,13 +703,7 @@ def test_caps_added_as_geometry_let_blender_check_the_volume_kept(addon):
     capped mesh under the lattice is kept."""
     from blender.scene import Target
 
-    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
-    bm = bmesh.new()
-    bm.from_mesh(ob.data)
-    bmesh.ops.delete(bm, geom=[f for f in bm.faces if f.calc_center_median().x > 0.6],
-                     context="FACES")  # fmt: skip
-    bm.to_mesh(ob.data)
-    bm.free()
+    ob, lat = holed_ball(subdivisions=3)
     bpy.context.view_layer.update()
     isochor_says = Target.of(ob).volumes()
     assert isochor_says.holes == 1
