@@ -156,7 +156,7 @@ def child(package: str, repeats: int, out: str) -> None:
     found["solve"] = _median(solves)
     found["converged"] = bool(job.result.converged)
     reset()
-    scenario, _ = write_scenario(Target.of(ob), Settings(), Path(out).with_suffix(".json"))
+    scenario, _ = write_scenario(Target.of(ob), Settings(), Path(out).with_name("problem.json"))
     found["scenario"] = str(scenario)
     reset()
     job = Solve(Target.of(ob), Settings())
