@@ -14,7 +14,8 @@ JSDEPS := tests/js/node_modules/.installed
 sysdeps:
 	@bash .ci/sysdeps
 
-# what the editor needs; `make test` adds the Blender venv and the glTF validator
+# the library with the editor (the gui extra), the tests and the compiled kernels; `make test`
+# adds the Blender venv and the glTF validator
 venv: $(VENV)/.installed
 
 testdeps: $(BVENV)/.installed $(JSDEPS)
@@ -27,8 +28,8 @@ $(PY):
 # a wheel without network. Then the optional kernels are compiled into the user's cache
 # (else the first run compiles them in the background; a failure leaves the NumPy path).
 $(VENV)/.installed: pyproject.toml isochor/__init__.py | $(PY)
-	$(PY) -m pip install --upgrade pip 'setuptools>=68' wheel
-	$(PY) -m pip install -e '.[test,bench,fast]'
+	$(PY) -m pip install --upgrade pip 'setuptools>=77' wheel
+	$(PY) -m pip install -e '.[gui,test,bench,fast]'
 	-$(PY) -m isochor.core.kernels --compile
 	touch $@
 
@@ -36,8 +37,8 @@ $(VENV)/.installed: pyproject.toml isochor/__init__.py | $(PY)
 $(BVENV)/.installed: pyproject.toml isochor/__init__.py
 	@if $(PYTHON) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; then \
 	  $(PYTHON) -m venv $(BVENV) && \
-	  $(BPY) -m pip install --upgrade pip 'setuptools>=68' wheel && \
-	  $(BPY) -m pip install -e '.[test,blender]' && touch $@; \
+	  $(BPY) -m pip install --upgrade pip 'setuptools>=77' wheel && \
+	  $(BPY) -m pip install -e '.[gui,test,blender]' && touch $@; \
 	else echo "venv: bpy needs Python 3.11; the Blender tests will skip"; fi
 
 $(JSDEPS): tests/js/package.json tests/js/package-lock.json
