@@ -8,7 +8,7 @@ BPY    := $(BVENV)/bin/python
 # the Khronos glTF validator (npm gltf-validator) the glTF tests run
 JSDEPS := tests/js/node_modules/.installed
 
-.PHONY: venv testdeps sysdeps run test test-numpy test-blender lint bench assets addon clean
+.PHONY: venv testdeps sysdeps run test test-numpy test-blender lint docs bench assets addon clean
 
 # Debian system packages (Qt/VTK runtime libs, Xvfb); apt runs only if something is missing.
 sysdeps:
@@ -74,6 +74,16 @@ test-numpy: venv
 lint: venv
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
+
+# the API reference, from the docstrings and docs/*.md (Sphinx with the docs extra):
+# build/docs/index.html; warnings are errors, as in CI
+docs: $(VENV)/.docs
+	$(VENV)/bin/sphinx-build -W --keep-going -q -E -b html docs build/docs
+	@echo "docs: build/docs/index.html"
+
+$(VENV)/.docs: $(VENV)/.installed
+	$(PY) -m pip install -e '.[docs]'
+	touch $@
 
 # regenerate the shipped sample models, example scenarios and icon (assets/)
 assets: venv
