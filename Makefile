@@ -11,13 +11,14 @@ BONLY  := .venv-bpy
 # the Khronos glTF validator (npm gltf-validator) the glTF tests run
 JSDEPS := tests/js/node_modules/.installed
 
-.PHONY: venv testdeps sysdeps run test test-numpy test-blender lint bench assets addon clean
+.PHONY: venv testdeps sysdeps run test test-numpy test-blender lint docs bench assets addon clean
 
 # Debian system packages (Qt/VTK runtime libs, Xvfb); apt runs only if something is missing.
 sysdeps:
 	@bash .ci/sysdeps
 
-# what the editor needs; `make test` adds the Blender venv and the glTF validator
+# the library with the editor (the gui extra), the tests and the compiled kernels; `make test`
+# adds the Blender venv and the glTF validator
 venv: $(VENV)/.installed
 
 testdeps: $(BVENV)/.installed $(BONLY)/.installed $(JSDEPS)
@@ -30,8 +31,8 @@ $(PY):
 # a wheel without network. Then the optional kernels are compiled into the user's cache
 # (else the first run compiles them in the background; a failure leaves the NumPy path).
 $(VENV)/.installed: pyproject.toml isochor/__init__.py | $(PY)
-	$(PY) -m pip install --upgrade pip 'setuptools>=68' wheel
-	$(PY) -m pip install -e '.[test,bench,fast]'
+	$(PY) -m pip install --upgrade pip 'setuptools>=77' wheel
+	$(PY) -m pip install -e '.[gui,test,bench,fast]'
 	-$(PY) -m isochor.core.kernels --compile
 	touch $@
 
@@ -39,8 +40,8 @@ $(VENV)/.installed: pyproject.toml isochor/__init__.py | $(PY)
 $(BVENV)/.installed: pyproject.toml isochor/__init__.py
 	@if $(PYTHON) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; then \
 	  $(PYTHON) -m venv $(BVENV) && \
-	  $(BPY) -m pip install --upgrade pip 'setuptools>=68' wheel && \
-	  $(BPY) -m pip install -e '.[test,blender]' && touch $@; \
+	  $(BPY) -m pip install --upgrade pip 'setuptools>=77' wheel && \
+	  $(BPY) -m pip install -e '.[gui,test,blender]' && touch $@; \
 	else echo "venv: bpy needs Python 3.11; the Blender tests will skip"; fi
 
 $(BONLY)/.installed: pyproject.toml
@@ -82,6 +83,16 @@ test-numpy: venv
 lint: venv
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
+
+# the API reference, from the docstrings and docs/*.md (Sphinx with the docs extra):
+# build/docs/index.html; warnings are errors, as in CI
+docs: $(VENV)/.docs
+	$(VENV)/bin/sphinx-build -W --keep-going -q -E -b html docs build/docs
+	@echo "docs: build/docs/index.html"
+
+$(VENV)/.docs: $(VENV)/.installed
+	$(PY) -m pip install -e '.[docs]'
+	touch $@
 
 # regenerate the shipped sample models, example scenarios and icon (assets/)
 assets: venv

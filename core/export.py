@@ -10,8 +10,14 @@ not to the welded and repaired copy the solver works on:
   coordinates, polygons, groups, materials, extra properties
   (:mod:`isochor.core.io.roundtrip`, :mod:`isochor.core.io.gltf`); a glTF can instead carry the
   deformation as a morph target on the original mesh;
+- **glTF from a model file of another format** (OBJ to GLB): the file converted with what
+  glTF carries of it (UVs, materials and their images, colours), then deformed as a glTF
+  model is;
 - **another format, or a built-in shape**: the deformed solver mesh (welded, triangles) is
   written fresh, and a note says what of the model's own file that format does not carry.
+
+A written glTF travels: a GLB embeds every image it uses, a .gltf refers only to images
+beside it and embeds the others (:mod:`isochor.core.io.gltf`).
 
 A solved sequence as one animated GLB (:func:`export_sequence`) is the model's own file as
 glTF (a glTF as it is; another format converted with its UVs, materials and colours) with
@@ -93,17 +99,18 @@ def _export(
         raise IsochorError(
             f"{path}: a morph target needs a glTF model exported as glTF (.glb or .gltf)"
         )
-    if not same:
+    # a model file written as glTF: the file converted (UVs, materials, colours), then
+    # deformed as a glTF model is
+    converted = source is not None and not same and suffix in GLTF_FORMATS
+    if not same and not converted:
         full = problem.surface.full  # (the model's own surface: never its caps)
         mesh = full.moved(problem.surface.deform(nodes)).own
         notes = _lost(problem, path) if source is not None else []
         return Exported(mesh_bytes(mesh, suffix), notes)
-    if not source.unchanged():
-        raise IsochorError(
-            f"{source.path}: the model file changed on disk since it was opened; open it "
-            "again to export it"
-        )
-    data = source.path.read_bytes()
+    _check_unchanged(source)
+    data, kind, notes = (
+        _as_gltf(source.path, path) if converted else (source.path.read_bytes(), None, [])
+    )
 
     def deform(points: np.ndarray) -> np.ndarray:
         return lattice.deform(points, nodes)
@@ -111,7 +118,8 @@ def _export(
     def jacobian(points: np.ndarray) -> np.ndarray:
         return lattice.jacobian(points, nodes)
 
-    exported = _rewrite(data, source.path, path, deform, jacobian, morph_target)
+    exported = _rewrite(data, source.path, path, deform, jacobian, morph_target, kind)
+    exported.notes[:0] = notes
     repairs = [w for w in problem.model.warnings if _REPAIRS.search(w)]
     if repairs:  # the file's own faces are kept: what the solve's copy had repaired is not
         exported.notes.append(
@@ -151,26 +159,19 @@ def export_sequence(
     (:func:`isochor.core.io.gltf.animate_gltf`). A built-in shape has no file: its solver
     mesh is animated (:func:`isochor.core.io.gltfanim.animated_glb`)."""
     from .io.gltf import animate_gltf
-    from .io.gltfanim import animated_glb, model_as_glb
+    from .io.gltfanim import animated_glb
 
     path, source, surface = Path(path), problem.model.source, problem.surface
     if source is None:
         own = surface.full.own  # (never the caps over its holes)
         meshes = [surface.deform(nodes)[: own.n_vertices] for nodes in frames]
         return Exported(animated_glb(own.vertices, own.faces, meshes, rate))
-    if not source.unchanged():
-        raise IsochorError(
-            f"{source.path}: the model file changed on disk since it was opened; open it "
-            "again to export it"
-        )
+    _check_unchanged(source)
     suffix, notes = source.path.suffix.lower(), []
     if suffix in GLTF_FORMATS:
         data = source.path.read_bytes()
     else:
-        data = model_as_glb(source.path)
-        if suffix == ".obj" and _OBJ_HOLDS["polygons"].search(source.path.read_bytes()):
-            notes.append(f"{path.name} holds {source.path.name}'s polygons as triangles")
-        suffix = ".glb"
+        data, suffix, notes = _as_gltf(source.path, path)
     lattice = surface.lattice
     pairs = [
         (lambda x, n=n: lattice.deform(x, n), lambda x, n=n: lattice.jacobian(x, n))
@@ -183,6 +184,27 @@ def export_sequence(
     return Exported(data, notes + list(more))
 
 
+def _check_unchanged(source) -> None:
+    if not source.unchanged():
+        raise IsochorError(
+            f"{source.path}: the model file changed on disk since it was opened; open it "
+            "again to export it"
+        )
+
+
+def _as_gltf(source: Path, out: Path) -> tuple[bytes, str, list[str]]:
+    """A model file of another format (OBJ, PLY, STL, OFF) as a GLB with what glTF carries
+    of it (its positions as in the file, UVs, materials and their images, colours;
+    :func:`isochor.core.io.gltfanim.model_as_glb`): the data, its suffix, and a note where
+    the model's polygons become triangles."""
+    from .io.gltfanim import model_as_glb
+
+    data, notes = model_as_glb(source), []
+    if source.suffix.lower() == ".obj" and _OBJ_HOLDS["polygons"].search(source.read_bytes()):
+        notes.append(f"{out.name} holds {source.name}'s polygons as triangles")
+    return data, ".glb", notes
+
+
 def _rewrite(
     data: bytes,
     source: Path,
@@ -190,8 +212,11 @@ def _rewrite(
     deform: Callable[[np.ndarray], np.ndarray],
     jacobian: Callable[[np.ndarray], np.ndarray],
     morph_target: bool,
+    kind: str | None = None,
 ) -> Exported:
-    suffix = source.suffix.lower()
+    """``data`` (the model ``source``'s file, or ``kind``: it converted to that glTF
+    suffix) rewritten deformed as ``out``."""
+    suffix = kind or source.suffix.lower()
     if suffix in GLTF_FORMATS:
         from .io.gltf import rewrite_gltf
 

@@ -35,6 +35,19 @@ def _validator() -> list[str]:
 def validate(*paths: Path) -> dict[str, list[str]]:
     """``{file name: [error messages]}`` of the Khronos validator for each file (an empty
     list: 0 errors)."""
+    return {name: line["messages"] for name, line in _reports(paths).items()}
+
+
+def external(*paths: Path) -> dict[str, list[str]]:
+    """``{file name: [uri]}``: the buffers and images each file keeps as separate files, as
+    the validator's resource list gives them (an empty list: the file carries them all)."""
+    return {
+        name: [r.get("uri") for r in line.get("resources", []) if r.get("storage") == "external"]
+        for name, line in _reports(paths).items()
+    }
+
+
+def _reports(paths: tuple[Path, ...]) -> dict[str, dict]:
     run = subprocess.run(
         [*_validator(), *map(str, paths)], capture_output=True, text=True, timeout=120
     )
@@ -43,7 +56,7 @@ def validate(*paths: Path) -> dict[str, list[str]]:
     out = {}
     for line in lines:
         assert line["errors"] == len(line["messages"]) or line["errors"] > 50, line
-        out[Path(line["path"]).name] = line["messages"]
+        out[Path(line["path"]).name] = line
     return out
 
 

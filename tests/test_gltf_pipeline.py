@@ -1,7 +1,8 @@
 """The pipeline into Blender (issue 26 item 4): ``--sequence anim.glb`` keeps the model's
 own mesh, UVs, materials and skin, with a morph target per frame and animated weights; a
-``.gltf`` written away from its images re-points them; every glTF/GLB Isochor writes
-validates with 0 errors in the Khronos validator (:mod:`tests.gltfcheck`)."""
+GLB embeds its images and a ``.gltf`` keeps only the ones beside it; an OBJ as GLB keeps
+its UVs and material; every glTF/GLB Isochor writes validates with 0 errors in the Khronos
+validator (:mod:`tests.gltfcheck`)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from PIL import Image
 
 import isochor
 from isochor.core.defaults import TOL_VOLUME
-from tests.gltfcheck import assert_valid, validate
+from tests.gltfcheck import assert_valid, external, validate
 from tests.test_cli_goals import SMALL_TORUS, scenario, solve
 
 #: float32 positions and deltas: a volume measured from the file is this close
@@ -168,10 +169,9 @@ def test_a_sequence_of_a_built_in_shape_validates(tmp_path):
     assert_valid(tmp_path / "torus.glb")
 
 
-def test_a_gltf_written_away_from_its_images_repoints_them(tmp_path):
-    """A .gltf with a separate image, exported into another folder: the image URI leads
-    from there to the original (the validator reads it: an IO error otherwise)."""
-    models = tmp_path / "models"
+def _separate_images_gltf(models: Path) -> bytes:
+    """``models/ball.gltf``: the textured sphere with its buffer (ball.bin) and its image
+    ("skin tex.png") as separate files; the image's bytes."""
     models.mkdir()
     doc, blob = glb_json(bytes(textured_sphere().export(file_type="glb")))
     image = doc["images"][0]
@@ -183,20 +183,95 @@ def test_a_gltf_written_away_from_its_images_repoints_them(tmp_path):
     doc["buffers"] = [{"byteLength": len(blob), "uri": "ball.bin"}]
     (models / "ball.bin").write_bytes(blob)
     (models / "ball.gltf").write_text(json.dumps(doc))
-    session = isochor.Session(models / "ball.gltf", lattice=(3, 3, 3))
+    return png
+
+
+def _embedded_image(path: Path) -> bytes:
+    """The bytes of the file's one image, which must be in its own buffer."""
+    if path.suffix == ".glb":
+        doc, blob = glb_json(path.read_bytes())
+    else:
+        import base64
+
+        doc = json.loads(path.read_text())
+        uri = doc["buffers"][0]["uri"]
+        assert uri.startswith("data:"), uri
+        blob = base64.b64decode(uri.partition(",")[2])
+    (image,) = doc["images"]
+    assert "uri" not in image and image["mimeType"] == "image/png", image
+    view = doc["bufferViews"][image["bufferView"]]
+    return blob[view["byteOffset"] : view["byteOffset"] + view["byteLength"]]
+
+
+def test_a_gltf_with_separate_images_travels(tmp_path):
+    """A .gltf whose image and buffer are separate files, exported: every GLB (elsewhere or
+    beside the model) and a .gltf written elsewhere embed the image, so the validator sees
+    no external URI and the files still validate once moved away; a .gltf written beside
+    the image keeps referring to it there."""
+    png = _separate_images_gltf(tmp_path / "models")
+    session = isochor.Session(tmp_path / "models" / "ball.gltf", lattice=(3, 3, 3))
     session.move((2, 2, 2), by=(0.2, 0.2, 0.0))
     session.solve()
     (tmp_path / "out" / "deep").mkdir(parents=True)
-    written = [tmp_path / "out" / "deep" / "a.gltf", models / "b.gltf", tmp_path / "c.glb"]
-    notes = [session.export(path) for path in written]
-    uris = [glb_json(p.read_bytes())[0] if p.suffix == ".glb" else json.loads(p.read_text())
-            for p in written]  # fmt: skip
-    assert uris[0]["images"][0]["uri"] == "../../models/skin%20tex.png", notes[0]
-    assert uris[1]["images"][0]["uri"] == "skin%20tex.png", notes[1]
-    assert uris[2]["images"][0]["uri"] == "models/skin%20tex.png", notes[2]
-    assert any("point at the originals" in n for n in notes[0])
-    assert any("beside it" in n for n in notes[1])
-    assert validate(*written) == {p.name: [] for p in written}
+    travel = [tmp_path / "out" / "deep" / "a.gltf", tmp_path / "c.glb"]
+    travel.append(tmp_path / "models" / "d.glb")
+    beside = tmp_path / "models" / "b.gltf"
+    notes = {p.name: session.export(p) for p in [*travel, beside]}
+    for path in travel:
+        assert _embedded_image(path) == png, path
+        assert any("are embedded in it" in n for n in notes[path.name]), notes
+    assert json.loads(beside.read_text())["images"][0]["uri"] == "skin%20tex.png"
+    assert any("beside it" in n for n in notes["b.gltf"]), notes
+    assert external(*travel, beside) == {
+        **{p.name: [] for p in travel},
+        "b.gltf": ["skin%20tex.png"],
+    }
+    moved = tmp_path / "elsewhere"
+    moved.mkdir()
+    for path in travel:
+        (moved / path.name).write_bytes(path.read_bytes())
+    assert validate(*(moved / p.name for p in travel), beside) == {
+        **{p.name: [] for p in travel},
+        "b.gltf": [],
+    }
+
+
+def test_a_textured_obj_as_glb_keeps_its_uvs_and_material(tmp_path):
+    """``isochor solve --out ball.glb`` of an OBJ with UVs, a material and its image: the
+    GLB has the OBJ's texture coordinates, the textured material and the image inside it
+    (no external URI), validates, and holds the solved volume."""
+    ball = textured_sphere()
+    ball.export(tmp_path / "ball.obj")
+    assert {p.name for p in tmp_path.iterdir()} >= {"ball.obj", "material.mtl"}
+    scene = {
+        "format": "isochor-scenario",
+        "version": 1,
+        "model": {"path": "ball.obj"},
+        "lattice": {"nodes": [3, 3, 3]},
+        "moves": [{"node": [2, 2, 2], "by": [0.3, 0.1, 0.0]}],
+    }
+    run = solve(tmp_path, scene, name="ball", out="ball.glb")
+    assert run.returncode == 0, run
+    assert "texture coordinates" not in run.stderr, run.stderr  # nothing lost, nothing said
+    doc, blob = glb_json((tmp_path / "ball.glb").read_bytes())
+    (prim,) = doc["meshes"][0]["primitives"]
+    assert "TEXCOORD_0" in prim["attributes"]
+    texture = doc["materials"][prim["material"]]["pbrMetallicRoughness"]["baseColorTexture"]
+    image = doc["images"][doc["textures"][texture["index"]]["source"]]
+    assert "bufferView" in image and "uri" not in image
+    # the UVs as the OBJ has them (trimesh's reader keeps one per vertex it made)
+    uv = accessor(doc, blob, prim["attributes"]["TEXCOORD_0"])
+    reloaded = trimesh.load(tmp_path / "ball.obj", process=False, maintain_order=True)
+    np.testing.assert_allclose(
+        np.column_stack([uv[:, 0], 1 - uv[:, 1]]), reloaded.visual.uv, atol=1e-6
+    )
+    positions = accessor(doc, blob, prim["attributes"]["POSITION"]).astype(np.float64)
+    faces = accessor(doc, blob, prim["indices"]).reshape(-1, 3).astype(np.int64)
+    volume = closed_volume(positions, faces)
+    assert volume / ball.volume == pytest.approx(1.0, abs=TOL_VOLUME + F32_VOLUME)
+    assert np.abs(positions - reloaded.vertices).max() > 0.05  # deformed
+    assert external(tmp_path / "ball.glb") == {"ball.glb": []}
+    assert_valid(tmp_path / "ball.glb")
 
 
 def test_every_export_kind_validates(tmp_path):

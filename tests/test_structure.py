@@ -519,7 +519,7 @@ def _can_build_offline() -> bool:
     code = (
         "import setuptools, wheel\n"
         "v = tuple(int(p) for p in setuptools.__version__.split('.')[:2])\n"
-        "raise SystemExit(0 if v >= (68, 0) else 1)\n"
+        "raise SystemExit(0 if v >= (77, 0) else 1)\n"
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, check=False)
     return result.returncode == 0
@@ -530,14 +530,14 @@ def _build_wheel(src: Path, out: Path) -> Path:
     pip += ["-q", "-w", str(out)]
     if _can_build_offline():
         result = _run([*pip, "--no-build-isolation", str(src)], out)
-    else:  # fetches setuptools>=68 and wheel into an isolated build environment
+    else:  # fetches setuptools>=77 and wheel into an isolated build environment
         try:
             result = _run([*pip, "--retries", "0", "--timeout", "15", str(src)], out)
         except subprocess.TimeoutExpired:
             pytest.skip("building the wheel with build isolation timed out (slow network?)")
         if result.returncode != 0 and any(s in result.stderr for s in _OFFLINE):
             pytest.skip(
-                "setuptools>=68/wheel are not in the venv and build isolation cannot fetch "
+                "setuptools>=77/wheel are not in the venv and build isolation cannot fetch "
                 f"them (no network): {result.stderr.strip().splitlines()[-1]}"
             )
     assert result.returncode == 0, f"pip wheel failed:\n{result.stdout}\n{result.stderr}"

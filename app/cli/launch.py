@@ -28,6 +28,24 @@ NO_DISPLAY_MESSAGE = (
 )
 
 
+#: the editor's libraries: the ``gui`` extra (``pip install 'isochor[gui]'``)
+GUI_MODULES = ("PySide6", "pyvista", "pyvistaqt")
+
+
+def missing_gui() -> str | None:
+    """The one line to show when the editor's libraries are not installed (a lean
+    ``pip install isochor``), or None. Looked up, not imported: it costs nothing."""
+    from importlib.util import find_spec
+
+    missing = [name for name in GUI_MODULES if find_spec(name) is None]
+    if not missing:
+        return None
+    return (
+        f"isochor: the editor needs {', '.join(missing)}: pip install 'isochor[gui]' "
+        "(`isochor solve SCENARIO` solves without a window)"
+    )
+
+
 def display_problem() -> str | None:
     """Why no window can be opened here, or None when a display is available."""
     if not sys.platform.startswith("linux"):
@@ -89,12 +107,13 @@ def run_editor(
     progressive redraw (at most ``timeout`` seconds, default :data:`SCREENSHOT_TIMEOUT`),
     save a PNG of the whole window there and return 0.
 
-    Returns the process exit code: 0, or 1 with one line on standard error (no display,
-    the GUI libraries are missing, or in screenshot mode a file or the solve failed). The
-    interactive editor does not return: when its window has closed the process ends at
-    once with the application's exit code (:func:`isochor.app.cli.console.leave_now`).
+    Returns the process exit code: 0, or 1 with one line on standard error (the gui
+    extra is not installed, no display, the GUI libraries fail to load, or in screenshot
+    mode a file or the solve failed). The interactive editor does not return: when its
+    window has closed the process ends at once with the application's exit code
+    (:func:`isochor.app.cli.console.leave_now`).
     """
-    problem = display_problem()
+    problem = missing_gui() or display_problem()
     if problem is not None:
         print(problem, file=sys.stderr)
         return NO_DISPLAY

@@ -40,6 +40,7 @@ interrupts.install()
 import argparse  # noqa: E402
 import json  # noqa: E402
 import os  # noqa: E402
+import re  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 import traceback  # noqa: E402
@@ -159,11 +160,56 @@ def _fail(message: Any, status: int = EXIT_ERROR) -> int:
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with one-line usage errors (exit 2), like every other message."""
+    """argparse with one-line usage errors (exit 2), like every other message; an unknown
+    option or command is named, with the nearest known one (``--ot``: did you mean
+    ``--out``?), before argparse would take the option's value for a file name."""
 
     def error(self, message: str):
+        choice = re.match(r"argument \S+: invalid choice: '(.*?)' \(choose from (.*)\)$", message)
+        if choice:  # a mistyped command
+            near = _nearest(choice[1], re.findall(r"'([^']*)'", choice[2]))
+            message = f"unknown command {choice[1]!r}" + (
+                f"; did you mean {near!r}?" if near else ""
+            )
         _fail(f"{message} (see '{self.prog} --help')")
         raise SystemExit(EXIT_USAGE)
+
+    def parse_known_args(self, args=None, namespace=None):
+        # (called by argparse for each command's own parser too, with the words after it)
+        words = list(sys.argv[1:] if args is None else args)
+        self._check_options(words)
+        return super().parse_known_args(words, namespace)
+
+    def _check_options(self, words: list[str]) -> None:
+        """An error for the first word that looks like an option and is none of this
+        parser's (nor the start of one, as argparse accepts), up to its command's name."""
+        options = [o for action in self._actions for o in action.option_strings]
+        commands = {
+            name
+            for action in self._actions
+            if action.nargs == argparse.PARSER  # the commands' action
+            for name in action.choices
+        }
+        for word in words:
+            if word == "--" or word in commands:
+                return  # the rest is a command's (its parser checks its own)
+            if not (word.startswith("--") or re.match(r"-[A-Za-z]", word)):
+                continue
+            name = word.split("=", 1)[0]
+            if name in options or (len(name) > 2 and any(o.startswith(name) for o in options)):
+                continue
+            # compared without the dashes, which every option shares
+            longs = {o[2:]: o for o in options if o.startswith("--")}
+            near = longs.get(_nearest(name.lstrip("-"), list(longs)))
+            self.error(f"unknown option {name}" + (f"; did you mean {near}?" if near else ""))
+
+
+def _nearest(word: str, known: list[str]) -> str | None:
+    """The known word nearest to ``word``, if any is near (difflib's ratio, 0.6)."""
+    import difflib
+
+    near = difflib.get_close_matches(word, known, n=1)
+    return near[0] if near else None
 
 
 def _parser() -> argparse.ArgumentParser:

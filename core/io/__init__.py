@@ -10,7 +10,7 @@
   holes capped with fans appended after the model's own vertices and faces
 - :mod:`.roundtrip` rewrite an OBJ/PLY/STL/OFF file: positions deformed, all else kept
 - :mod:`.gltf`      read glTF/GLB; rewrite it deformed, with a morph target, or animated (a
-  morph target per frame, weights animated); separate images re-pointed when written elsewhere
+  morph target per frame, weights animated); a GLB embeds its images, a .gltf those not beside it
 - :mod:`.gltfanim`  a sequence's GLB: another format's model file as glTF (UVs, materials),
   or a built-in shape's bare mesh animated
 - :mod:`.companions` the files a model reads besides itself (mtllib, textures, glTF

@@ -1,9 +1,9 @@
 """glTF 2.0 (.glb, .gltf): :func:`read_gltf` gives the default scene's world-space triangles;
 :func:`rewrite_gltf` writes the file back deformed, all else kept, buffers merged into one,
 a copy of a mesh for each transform it is used under; :func:`animate_gltf` keeps the file and
-adds one morph target per frame of a sequence with the animation of their weights. Images
-kept as separate files are re-pointed (a relative path from the written file's folder to
-the original) when the file is written to another folder. Refused in one line naming the
+adds one morph target per frame of a sequence with the animation of their weights. A
+written file travels: a GLB embeds every image it uses, a .gltf keeps only images beside
+it as separate files and embeds the others. Refused in one line naming the
 file: compression, quantized or sparse vertex data, GPU instancing, damaged files."""
 
 from __future__ import annotations
@@ -11,13 +11,12 @@ from __future__ import annotations
 import base64
 import copy
 import json
-import os
 import struct
 import warnings
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from urllib.parse import quote, unquote
+from urllib.parse import unquote
 
 import numpy as np
 
@@ -92,13 +91,14 @@ def rewrite_gltf(
     transpose, TANGENT xyz by the Jacobian, renormalised, min/max updated; or, with
     ``morph_target``, as a new morph target "isochor" of weight 1; written as ``out_suffix``
     (.glb or .gltf; default: as read) into ``out_dir`` (default: ``base_dir``; separate
-    images are re-pointed from there). And notes for the user, one sentence each."""
+    images are embedded unless a .gltf is written beside them). And notes for the user, one
+    sentence each."""
     with _guard(name):
         gltf = _Gltf(data, suffix, name, base_dir)
         gltf.suffix = (out_suffix or suffix).lower()  # the container written
         gltf.merge_buffers()
         jobs, notes = gltf.plan(["isochor"] if morph_target else [], 1.0)
-        notes += gltf.repoint_images(base_dir, out_dir)
+        notes += gltf.place_images(base_dir, out_dir)
         points = np.concatenate([old["POSITION"] @ w[:3, :3].T + w[:3, 3] for _, w, old in jobs])
     moved, jac = np.asarray(deform(points), float), np.asarray(jacobian(points), float)
     if moved.shape != points.shape or jac.shape != (len(points), 3, 3):
@@ -139,7 +139,7 @@ def animate_gltf(
         gltf.suffix = ".glb"
         gltf.merge_buffers()
         jobs, notes = gltf.plan(names, 0.0)
-        notes += gltf.repoint_images(base_dir, out_dir)
+        notes += gltf.place_images(base_dir, out_dir)
         points = np.concatenate([old["POSITION"] @ w[:3, :3].T + w[:3, 3] for _, w, old in jobs])
         size = len(gltf.buffers[0]) + 4 * len(frames) * sum(
             sum(3 * len(v) for v in old.values()) for _, _, old in jobs
@@ -409,33 +409,47 @@ class _Gltf:
         animation = {"name": "isochor sequence", "samplers": samplers, "channels": channels}
         self.doc.setdefault("animations", []).append(animation)
 
-    def repoint_images(self, base_dir: Path | None, out_dir: Path | None) -> list[str]:
-        """Images that are separate files, written into ``out_dir``: their URIs re-pointed
-        to the originals beside the model (a relative path), or embedded where no relative
-        path reaches them (another drive). Notes naming what was done."""
+    def place_images(self, base_dir: Path | None, out_dir: Path | None) -> list[str]:
+        """Images that are separate files, so that the written file travels: a GLB embeds
+        every one (a buffer view of its binary chunk); a .gltf written beside them keeps
+        pointing at them, one written elsewhere embeds them (in its buffer, itself a data
+        URI). Notes naming what was done."""
         images = [i for i in self.doc.get("images", []) if isinstance(i, dict)]
         files = [i for i in images if isinstance(i.get("uri"), str) and ":" not in i["uri"]]
         if not files:
             return []
-        if base_dir is None or out_dir is None or _same_dir(base_dir, out_dir):
+        beside = out_dir is None or (base_dir is not None and _same_dir(base_dir, out_dir))
+        if base_dir is None or (self.suffix == ".gltf" and beside):
             names = ", ".join(i["uri"] for i in files)
             return [f"the images {names} stay separate files beside it"]
-        moved, embedded = [], []
+        embedded, missing = [], []
         for image in files:
-            original = Path(base_dir).absolute() / unquote(image["uri"])
+            path = confined(base_dir, image["uri"], "image")  # (checked when it was read)
             try:
-                relative = os.path.relpath(original, Path(out_dir).absolute())
-            except ValueError:  # another drive: no relative path
-                relative = None
-            if relative is not None or not original.is_file():
-                image["uri"] = quote(Path(relative or original).as_posix())
-                moved.append(image["uri"])
+                input_file(path, "image", MAX_BUFFER_BYTES)
+                data = path.read_bytes()
+            except (OSError, IsochorError):
+                missing.append(unquote(image["uri"]))
                 continue
-            mime = "image/png" if original.suffix.lower() == ".png" else "image/jpeg"
-            image["uri"] = f"data:{mime};base64," + base64.b64encode(original.read_bytes()).decode()
-            embedded.append(original.name)
-        notes = [f"its images point at the originals ({', '.join(moved)})"] if moved else []
-        return notes + ([f"the images {', '.join(embedded)} are embedded"] if embedded else [])
+            del image["uri"]
+            image["bufferView"] = self._view(data)
+            image["mimeType"] = _mime(data, path.suffix)
+            embedded.append(path.name)
+        notes = [f"the images {', '.join(embedded)} are embedded in it"] if embedded else []
+        if missing:
+            notes.append(
+                f"warning: the images {', '.join(missing)} cannot be read, so they are not in "
+                "it; it still refers to them by name"
+            )
+        return notes
+
+    def _view(self, data: bytes) -> int:
+        """A new buffer view holding ``data``, appended to buffer 0 at a 4-byte boundary."""
+        size = (len(self.buffers[0]) if self.buffers else 0) + sum(len(b) for b in self.extra)
+        self.extra += [bytes(-size % 4), bytes(data)]
+        views = self.doc.setdefault("bufferViews", [])
+        views.append({"buffer": 0, "byteOffset": size + -size % 4, "byteLength": len(data)})
+        return len(views) - 1
 
     def _window(self, index, vertex: bool) -> tuple[np.ndarray, np.dtype]:
         """An accessor's bytes, ``(count, element size)`` uint8 strided, and its type."""
@@ -485,13 +499,10 @@ class _Gltf:
         """A new float accessor holding ``values`` (tightly packed, appended to buffer 0),
         ``(k, 1)`` values as SCALAR with ``scalar``."""
         data = np.ascontiguousarray(values, "<f4")
-        size = (len(self.buffers[0]) if self.buffers else 0) + sum(len(b) for b in self.extra)
-        self.extra += [bytes(-size % 4), data.tobytes()]
-        views = self.doc.setdefault("bufferViews", [])
-        views.append({"buffer": 0, "byteOffset": size + -size % 4, "byteLength": data.nbytes})
+        view = self._view(data.tobytes())
         accessors = self.doc.setdefault("accessors", [])
         accessors.append({k: like[k] for k in ("name", "extras") if like and k in like})
-        accessors[-1] |= {"bufferView": len(views) - 1, "componentType": _FLOAT, "count": len(data)}
+        accessors[-1] |= {"bufferView": view, "componentType": _FLOAT, "count": len(data)}
         kind = "SCALAR" if scalar else f"VEC{data.shape[1]}"
         accessors[-1] |= {"type": kind, "min": data.min(0).tolist()}
         accessors[-1]["max"] = data.max(0).tolist()
@@ -526,6 +537,19 @@ def _deformed(world: np.ndarray, old: dict, moved: np.ndarray, jac: np.ndarray) 
         turned = _unit(np.einsum("pab,pb->pa", local, old["TANGENT"][:, :3]))
         new["TANGENT"] = np.column_stack([turned, old["TANGENT"][:, 3]])
     return new
+
+
+#: an embedded image's type, by its first bytes (glTF's two core types), else its suffix
+_MAGIC = {b"\x89PNG\r\n\x1a\n": "image/png", b"\xff\xd8\xff": "image/jpeg"}
+_SUFFIX_MIME = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
+_SUFFIX_MIME |= {".webp": "image/webp", ".ktx2": "image/ktx2"}
+
+
+def _mime(data: bytes, suffix: str) -> str:
+    for magic, mime in _MAGIC.items():
+        if data.startswith(magic):
+            return mime
+    return _SUFFIX_MIME.get(suffix.lower(), "application/octet-stream")
 
 
 def _same_dir(a: Path, b: Path) -> bool:

@@ -1,6 +1,7 @@
 // The Khronos glTF validator over the files named on the command line: one JSON line
 // each, {"path", "errors", "warnings", "messages"} (messages: the errors, code and
-// pointer). External buffers and images are read beside the file. Exit 0 unless a file
+// pointer; resources: each buffer and image with its storage, "external" for a separate
+// file, and its uri). External buffers and images are read beside the file. Exit 0 unless a file
 // could not be validated at all (then exit 2); the caller judges the counts.
 "use strict";
 const fs = require("fs");
@@ -19,7 +20,18 @@ async function one(file) {
   const messages = issues.messages
     .filter((m) => m.severity === 0)
     .map((m) => `${m.code} ${m.pointer || ""}: ${m.message}`);
-  return { path: file, errors: issues.numErrors, warnings: issues.numWarnings, messages };
+  const resources = ((report.info && report.info.resources) || []).map((r) => ({
+    pointer: r.pointer,
+    storage: r.storage,
+    uri: r.uri,
+  }));
+  return {
+    path: file,
+    errors: issues.numErrors,
+    warnings: issues.numWarnings,
+    messages,
+    resources,
+  };
 }
 
 (async () => {
