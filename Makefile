@@ -69,10 +69,12 @@ addon: testdeps
 test-numpy: venv
 	ISOCHOR_NO_JIT=1 $(PY) -m pytest -q --ignore=tests/gui $(ARGS)
 
-# the same lint CI runs
+# the same lint CI runs: ruff, then mypy and the import contracts (import-linter) on the
+# package laid out as it installs (tests/lint.py)
 lint: venv
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
+	$(PY) -m tests.lint
 
 # regenerate the shipped sample models, example scenarios and icon (assets/)
 assets: venv

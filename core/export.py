@@ -98,6 +98,7 @@ def _export(
         mesh = full.moved(problem.surface.deform(nodes)).own
         notes = _lost(problem, path) if source is not None else []
         return Exported(mesh_bytes(mesh, suffix), notes)
+    assert source is not None  # same: the source is of the same kind
     if not source.unchanged():
         raise IsochorError(
             f"{source.path}: the model file changed on disk since it was opened; open it "
@@ -301,6 +302,7 @@ def _lost(problem: Problem, out: Path) -> list[str]:
     """One note naming what the model's own file holds that a fresh ``out`` does not: its
     texture coordinates, normals, polygons, groups, materials, extra properties, or its
     vertex numbering (when welding changed it). Nothing when nothing is lost."""
+    assert problem.model.source is not None  # (called for a model read from a file)
     source = problem.model.source.path
     suffix = source.suffix.lower()
     try:
