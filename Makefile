@@ -79,10 +79,12 @@ addon: testdeps
 test-numpy: venv
 	ISOCHOR_NO_JIT=1 $(PY) -m pytest -q --ignore=tests/gui $(ARGS)
 
-# the same lint CI runs
+# the same lint CI runs: ruff, then mypy and the import contracts (import-linter) on the
+# package laid out as it installs (tests/lint.py)
 lint: venv
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
+	$(PY) -m tests.lint
 
 # the API reference, from the docstrings and docs/*.md (Sphinx with the docs extra):
 # build/docs/index.html; warnings are errors, as in CI

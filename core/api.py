@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -271,10 +271,9 @@ class Session:
         """Add a handle on the model's point ``at`` (rest coordinates) that the next solves
         put at ``to`` (by default where the current nodes put it: no change until moved).
         Returns its index in :attr:`handles`."""
-        at = _point(at, "add_handle: at")
-        if to is None:
-            to = self.lattice.deform(at[None], self._checked_nodes())[0]
-        self.handles.append(Handle(at, _point(to, "add_handle: to")))
+        point = _point(at, "add_handle: at")
+        end = self.lattice.deform(point[None], self._checked_nodes())[0] if to is None else to
+        self.handles.append(Handle(point, _point(end, "add_handle: to")))
         return len(self.handles) - 1
 
     def key(self, frame: int, *, target: float | None = None) -> None:
@@ -293,7 +292,9 @@ class Session:
         poses, _ = Timeline(tuple(self.poses), 0, 0).to_json()
         settings = {"rate": rate, "interpolation": interpolation}
         settings.update({k: v for k, v in (("start", start), ("end", end)) if v is not None})
-        return Timeline.from_json(poses, settings, self.lattice.shape, VERSION)
+        timeline = Timeline.from_json(poses, settings, self.lattice.shape, VERSION)
+        assert timeline is not None  # poses were keyed
+        return timeline
 
     def frames(self, start=None, end=None, *, rate=24.0, interpolation="linear") -> Solved:
         """Solve every frame of the keyed poses (each warm-started from the one before);
@@ -440,7 +441,9 @@ class Session:
         moved = whole & np.any(self.nodes != rest, axis=1)
         lat = self.lattice
         moves = tuple(
-            Move(lat.ijk(r), to=tuple(float(x) for x in self.nodes[r]))
+            Move(
+                lat.ijk(r), to=cast("tuple[float, float, float]", tuple(map(float, self.nodes[r])))
+            )
             for r in np.flatnonzero(moved)
         )
         pins = tuple(lat.ijk(r) for r in np.flatnonzero(whole & ~moved))

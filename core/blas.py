@@ -27,6 +27,7 @@ import os
 import threading
 from collections.abc import Generator
 from contextlib import contextmanager
+from typing import Any
 
 #: environment variables by which a user sets BLAS's threads: any of them set, and the
 #: solver leaves the threads as they are
@@ -54,9 +55,9 @@ class _Limit:
 
     def __init__(self) -> None:
         self.lock = threading.Lock()
-        self.controller = None
+        self.controller: Any = None
         self.depth = 0
-        self.held = None
+        self.held: Any = None
 
     def _made(self):
         if self.controller is None:

@@ -39,7 +39,7 @@ from .io.companions import model_inputs
 from .io.formats import GLTF_FORMATS, WRITE_FORMATS, listing
 from .io.meshio import mesh_bytes
 from .io.plyheader import PlyHeader
-from .scenario.problem import Problem
+from .scenario.problem import Problem, SourceFile
 
 
 @dataclass(frozen=True)
@@ -107,6 +107,7 @@ def _export(
         mesh = full.moved(problem.surface.deform(nodes)).own
         notes = _lost(problem, path) if source is not None else []
         return Exported(mesh_bytes(mesh, suffix), notes)
+    assert source is not None  # same: the source is of the same kind
     _check_unchanged(source)
     data, kind, notes = (
         _as_gltf(source.path, path) if converted else (source.path.read_bytes(), None, [])
@@ -167,7 +168,8 @@ def export_sequence(
         meshes = [surface.deform(nodes)[: own.n_vertices] for nodes in frames]
         return Exported(animated_glb(own.vertices, own.faces, meshes, rate))
     _check_unchanged(source)
-    suffix, notes = source.path.suffix.lower(), []
+    suffix = source.path.suffix.lower()
+    notes: list[str] = []
     if suffix in GLTF_FORMATS:
         data = source.path.read_bytes()
     else:
@@ -184,7 +186,7 @@ def export_sequence(
     return Exported(data, notes + list(more))
 
 
-def _check_unchanged(source) -> None:
+def _check_unchanged(source: SourceFile) -> None:
     if not source.unchanged():
         raise IsochorError(
             f"{source.path}: the model file changed on disk since it was opened; open it "
@@ -326,6 +328,7 @@ def _lost(problem: Problem, out: Path) -> list[str]:
     """One note naming what the model's own file holds that a fresh ``out`` does not: its
     texture coordinates, normals, polygons, groups, materials, extra properties, or its
     vertex numbering (when welding changed it). Nothing when nothing is lost."""
+    assert problem.model.source is not None  # (called for a model read from a file)
     source = problem.model.source.path
     suffix = source.suffix.lower()
     try:

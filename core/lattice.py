@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from math import comb
+from typing import cast
 
 import numpy as np
 
@@ -104,7 +105,7 @@ class PointBasis:
 
     def __init__(self, uvw: np.ndarray, shape: tuple[int, int, int]) -> None:
         uvw = np.asarray(uvw, dtype=np.float64).reshape(-1, 3)
-        self.shape = tuple(int(d) for d in shape)
+        self.shape = cast("tuple[int, int, int]", tuple(int(d) for d in shape))
         self.n_points = len(uvw)
         #: (3, p) lattice coordinates, what the compiled kernels read
         self.uvw = np.ascontiguousarray(uvw.T)
@@ -137,6 +138,7 @@ class PointBasis:
         full mesh of most solves, never builds it)."""
         dense_t, buv_t, bw_t = self._built()
         if dense_t is None and self._dense:
+            assert buv_t is not None and bw_t is not None  # factored when not dense
             l, m, n = self.shape
             dense_t = (buv_t[:, None, :] * bw_t[None, :, :]).reshape(l * m * n, self.n_points)
             self._tables = (dense_t, buv_t, bw_t)
@@ -171,6 +173,7 @@ class PointBasis:
         dense_t, buv_t, bw_t = self._built()
         if buv_t is None:
             return (nodes.T @ dense_t).T
+        assert bw_t is not None  # the factored form's two factors come together
         l, m, n = self.shape
         lm, p = l * m, self.n_points
         # x_t[(k, c), ij] = nodes[(ij, k), c]
@@ -194,7 +197,9 @@ class PointBasis:
             return out
         dense_t, buv_t, bw_t = self._built()
         if buv_t is None:
+            assert dense_t is not None  # not factored: dense
             return np.ascontiguousarray((v @ dense_t.T).T)
+        assert bw_t is not None  # the factored form's two factors come together
         l, m, n = self.shape
         lm, p = l * m, self.n_points
         acc = np.zeros((3 * n, lm))
@@ -224,7 +229,7 @@ def basis_names(basis) -> tuple[str, str, str]:
         raise IsochorError(
             f"The Bernstein basis cannot be mixed with the local bases, got {', '.join(names)}."
         )
-    return names
+    return cast("tuple[str, str, str]", names)  # three, checked above
 
 
 @dataclass(frozen=True, eq=False)
@@ -335,10 +340,12 @@ class Lattice:
             raise IndexError(f"node ({i}, {j}, {k}) is outside a {l}x{m}x{n} lattice")
         return (i * m + j) * n + k
 
-    def ijk(self, index: int) -> tuple[int, int, int]:
+    def ijk(self, index: int | np.integer) -> tuple[int, int, int]:
         """(i, j, k) of node row ``index``."""
         l, m, n = self.shape
-        return tuple(int(a) for a in np.unravel_index(index, (l, m, n)))
+        return cast(
+            "tuple[int, int, int]", tuple(int(a) for a in np.unravel_index(index, (l, m, n)))
+        )
 
     def grid_parameters(self) -> np.ndarray:
         """(nodes, 3) lattice coordinates (i/(l-1), j/(m-1), k/(n-1)) of every node (0.5 on

@@ -41,6 +41,8 @@ by block for large ones).
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -235,8 +237,8 @@ class LocalPointBasis:
         outside: sp.csr_matrix | None = None,
     ) -> None:
         uvw = np.asarray(uvw, dtype=np.float64).reshape(-1, 3)
-        self.shape = tuple(int(d) for d in shape)
-        self.kinds = tuple(kinds)
+        self.shape = cast("tuple[int, int, int]", tuple(int(d) for d in shape))
+        self.kinds = cast("tuple[str, str, str]", tuple(kinds))
         self.codes = codes(self.kinds)
         self.n_points = len(uvw)
         #: (3, p) lattice coordinates and world positions, what the kernels read

@@ -96,6 +96,7 @@ def sequence_report(problem: Problem, seq, source: str, time_s: float) -> dict[s
     failed = [f for f in frames if not f.result.converged]
     out = make_report(problem, frames[-1].result, source, time_s)
     timeline = problem.scenario.timeline
+    assert timeline is not None  # a sequence is solved from its timeline
     out.update(
         converged=seq.converged,
         target_error=worst.result.target_error,

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from .errors import IsochorError
 
@@ -94,7 +94,7 @@ def vec3(obj: Any, where: str) -> tuple[float, float, float]:
     if not isinstance(obj, list) or len(obj) != 3:
         raise IsochorError(f"{where}: must be a list of three numbers")
     limit = (-MAX_COORDINATE, MAX_COORDINATE)
-    return tuple(number(x, where, limit) for x in obj)
+    return cast("tuple[float, float, float]", tuple(number(x, where, limit) for x in obj))  # len 3
 
 
 def int_triple(obj: Any, where: str) -> tuple[int, int, int]:

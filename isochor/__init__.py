@@ -27,7 +27,19 @@ annotations.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 __version__ = "0.2.0"
+
+if TYPE_CHECKING:  # what a type checker reads; at run time __getattr__ imports them
+    # (``name as name``: re-exported, as a user's ``mypy --strict`` requires)
+    from .core.api import Deformed as Deformed
+    from .core.api import Session as Session
+    from .core.api import deform as deform
+    from .core.api import load as load
+    from .core.errors import IsochorError as IsochorError
+    from .core.scenario.document import Move as Move
+    from .core.scenario.document import Scenario as Scenario
 
 _API = {
     "deform": "isochor.core.api",

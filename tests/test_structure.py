@@ -19,6 +19,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tomllib
 import zipfile
 from collections import deque
 from dataclasses import dataclass
@@ -47,25 +48,22 @@ OLD_TOP_LEVEL = ("core", "app", "assets")
 UNSHIPPED = ("benchmarks", "tests")
 #: the layers inside each folder, lowest first: a module imports only from lower layers or
 #: from its own subpackage. A layer is a set of siblings that do not import each other: a
-#: subpackage (``io``) or a module at the folder's top (``lattice``). (import-linter's
-#: layers contract says the same, but its graph builder cannot follow pyproject's
-#: package-dir mapping, so the check stays here.)
-CORE_LAYERS = (
-    {"errors", "forked", "blas"},
-    {"defaults", "validate"},
-    {"kernels"},
-    {"localbasis"},
-    {"lattice", "mesh"},
-    {"bodies", "springs", "volume"},
-    {"inside"},
-    {"io"},
-    {"goal"},
-    {"solve"},
-    {"scenario"},
-    {"adapters", "export", "report"},
-    {"api"},
-)
-APP_LAYERS = ({"editor"}, {"session", "view"}, {"window"}, {"cli"})
+#: subpackage (``io``) or a module at the folder's top (``lattice``). The tables are
+#: import-linter's layers contracts in pyproject.toml (``make lint`` runs import-linter on
+#: them too); they are read here so that they are written once.
+
+
+def _contract_layers(container: str) -> tuple[set[str], ...]:
+    contracts = tomllib.loads((ROOT / "pyproject.toml").read_text("utf-8"))["tool"]
+    for contract in contracts["importlinter"]["contracts"]:
+        if contract.get("containers") == [container]:
+            layers = [{n.strip() for n in layer.split("|")} for layer in contract["layers"]]
+            return tuple(reversed(layers))
+    raise AssertionError(f"pyproject.toml has no layers contract for {container}")
+
+
+CORE_LAYERS = _contract_layers("isochor.core")
+APP_LAYERS = _contract_layers("isochor.app")
 #: "small enough to read at a glance": modules at the top of one package folder
 MAX_PACKAGE_MODULES = 20
 
@@ -603,3 +601,12 @@ def test_wheel_ships_one_import_name(tmp_path):
             assert function in _functions(modules[file]), (
                 f"{section} {script} = {target}: {file} defines no {function}()"
             )
+
+
+def test_the_import_contract_forbids_every_gui_library():
+    """import-linter's "core imports no GUI" contract names the same libraries as the
+    fresh-interpreter tests (:data:`tests.fresh.GUI_LIBRARIES`)."""
+    contracts = tomllib.loads((ROOT / "pyproject.toml").read_text("utf-8"))["tool"]
+    forbidden = [c for c in contracts["importlinter"]["contracts"] if c.get("type") == "forbidden"]
+    assert forbidden and forbidden[0]["source_modules"] == ["isochor.core"], forbidden
+    assert set(forbidden[0]["forbidden_modules"]) == set(GUI_LIBRARIES)

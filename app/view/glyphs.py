@@ -92,6 +92,7 @@ def node_actor(poly: pv.PolyData, size: float) -> vtkActor:
     """The nodes: ``poly`` has the point arrays ``rgb`` (uint8 colours) and ``shape``."""
     actor = glyph_actor(poly, _sources(), size)
     mapper = actor.GetMapper()
+    assert isinstance(mapper, vtkGlyph3DMapper)  # glyph_actor's
     mapper.SetSourceIndexArray("shape")
     mapper.SetSourceIndexing(True)
     mapper.SetScalarModeToUsePointFieldData()

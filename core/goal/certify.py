@@ -34,6 +34,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass
 from math import comb
+from typing import cast
 
 import numpy as np
 
@@ -128,7 +129,7 @@ def determinant_coefficients(control: np.ndarray) -> np.ndarray:
         _product(dv[..., 2], dw[..., 0]) - _product(dv[..., 0], dw[..., 2]),
         _product(dv[..., 0], dw[..., 1]) - _product(dv[..., 1], dw[..., 0]),
     ]
-    return sum(_product(du[..., a], cross[a]) for a in range(3))
+    return cast(np.ndarray, sum(_product(du[..., a], cross[a]) for a in range(3)))
 
 
 def rounding_bound(control: np.ndarray) -> float:

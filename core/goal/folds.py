@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from math import comb
+from typing import cast
 
 import numpy as np
 import scipy.sparse as sp
@@ -354,7 +355,11 @@ class FoldCheck:
             return folds
         # no sample folded: prove it between them, or find the pocket they missed
         proof = certify(self.lattice, nodes, self._occupancy)
-        witness = None if proof.witness is None else tuple(float(c) for c in proof.witness)
+        witness = (
+            None
+            if proof.witness is None
+            else cast("tuple[float, float, float]", tuple(map(float, proof.witness)))
+        )
         return replace(
             folds,
             proven=proof.proven,

@@ -24,9 +24,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import IsochorError
 from ..lattice import Lattice, bernstein
@@ -45,10 +46,10 @@ def _point(value, where: str) -> tuple[float, float, float]:
         raise IsochorError(f"{where}: must be three numbers [x, y, z]") from None
     if not np.all(np.isfinite(p)):
         raise IsochorError(f"{where}: must be three finite numbers, got {list(p)}")
-    return tuple(float(a) for a in p)
+    return cast("tuple[float, float, float]", tuple(float(a) for a in p))  # p has 3 entries
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Handle:
     """A point of the model at rest (``at``) and where it must be after the solve (``to``),
     both in world units."""
@@ -56,9 +57,9 @@ class Handle:
     at: tuple[float, float, float]
     to: tuple[float, float, float]
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "at", _point(self.at, "handle.at"))
-        object.__setattr__(self, "to", _point(self.to, "handle.to"))
+    def __init__(self, at: ArrayLike, to: ArrayLike) -> None:
+        object.__setattr__(self, "at", _point(at, "handle.at"))
+        object.__setattr__(self, "to", _point(to, "handle.to"))
 
     def moved_to(self, to) -> Handle:
         return Handle(self.at, to)
@@ -179,7 +180,12 @@ class HandleSystem:
         reached = self.lattice.deform(at, nodes)
         miss = np.linalg.norm(reached - np.array([hd.to for hd in hs]), axis=1) / self.size
         return tuple(
-            HandleResult(hd.at, hd.to, tuple(float(a) for a in r), float(m))
+            HandleResult(
+                hd.at,
+                hd.to,
+                cast("tuple[float, float, float]", tuple(float(a) for a in r)),
+                float(m),
+            )
             for hd, r, m in zip(hs, reached, miss)
         )
 

@@ -75,7 +75,7 @@ def confined(base_dir: str | Path | None, uri: str, what: str) -> Path:
             why = "it leads out of the model's folder"
     if why is None and base_dir is None:
         return Path(text)
-    if why is None:
+    if why is None and base_dir is not None:
         base = Path(os.path.realpath(base_dir))
         path = Path(base_dir) / text
         real = Path(os.path.realpath(path))

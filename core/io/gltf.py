@@ -16,6 +16,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from typing import NoReturn, cast
 from urllib.parse import unquote
 
 import numpy as np
@@ -185,7 +186,11 @@ class _Gltf:
     def __init__(self, data: bytes, suffix: str, name: str, base_dir: Path | None):
         self.name, self.suffix = name, suffix.lower()
         # original values, transforms written, appended bytes, .bin files, outside accessors
-        self.cache, self.done, self.extra, self.external, self.kept = {}, {}, [], [], set()
+        self.cache: dict = {}
+        self.done: dict = {}
+        self.extra: list = []
+        self.external: list[str] = []
+        self.kept: set = set()
         if self.suffix not in (".glb", ".gltf"):
             self.fail(f"not a glTF file suffix {suffix!r} (use .glb or .gltf)")
         text, binary = self._split_glb(bytes(data)) if self.suffix == ".glb" else (data, None)
@@ -222,7 +227,7 @@ class _Gltf:
                 except IsochorError as exc:
                     self.fail(str(exc))
 
-    def fail(self, message: str):
+    def fail(self, message: str) -> NoReturn:
         raise IsochorError(f"{self.name}: {message}")
 
     def ref(self, kind: str, index) -> dict:
@@ -381,13 +386,19 @@ class _Gltf:
             self.fail(f"mesh {label}'s morph weights are animated; deform its vertices instead")
         weights, extras = mesh.get("weights"), mesh.setdefault("extras", {})
         known = isinstance(weights, list) and len(weights) == before
-        mesh["weights"] = [*(weights if known else [0.0] * before), *[weight] * len(targets)]
+        mesh["weights"] = [
+            *(cast(list, weights) if known else [0.0] * before),
+            *[weight] * len(targets),
+        ]
         for node in (self.doc["nodes"][n] for n in group if "weights" in self.doc["nodes"][n]):
             node["weights"] = [*node["weights"], *[weight] * len(targets)]
         if isinstance(extras, dict):
             names = extras.get("targetNames")
             known = isinstance(names, list) and len(names) == before
-            extras["targetNames"] = [*(names if known else ["target"] * before), *targets]
+            extras["targetNames"] = [
+                *(cast(list, names) if known else ["target"] * before),
+                *targets,
+            ]
 
     def animate_weights(self, count: int, rate: float) -> None:
         """An animation "isochor sequence" of the last ``count`` morph targets of every

@@ -15,6 +15,7 @@ import json
 import struct
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -121,7 +122,7 @@ def model_as_glb(path: Path) -> bytes:
     import trimesh
 
     try:
-        loaded = trimesh.load(str(path), process=False, maintain_order=True)
+        loaded: Any = trimesh.load(str(path), process=False, maintain_order=True)  # a scene or mesh
         return bytes(loaded.export(file_type="glb"))
     except Exception as exc:  # trimesh raises anything on a file it rejects
         detail = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]

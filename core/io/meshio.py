@@ -26,6 +26,7 @@ from collections.abc import Iterable
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -294,6 +295,7 @@ def binary_ply(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     n_vertices, n_faces = vertex.rows, face.rows
     index = face.properties[0]
+    assert index.count is not None  # a list property: checked above
     vtype = np.dtype([(p.name, "<" + p.kind) for p in vertex.properties])
     ftype = np.dtype([("n", "<" + index.count), ("i", "<" + index.kind, (3,))])
     start = header.body
@@ -472,7 +474,7 @@ def mesh_bytes(mesh: TriMesh, suffix: str) -> bytes:
 
         tm = trimesh.Trimesh(v, f, process=False)
         if suffix == ".glb":
-            return tm.export(file_type="glb")
-        files = tm.export(file_type="gltf", embed_buffers=True)
+            return cast(bytes, tm.export(file_type="glb"))
+        files = cast(dict, tm.export(file_type="gltf", embed_buffers=True))
         return next(data for key, data in files.items() if key.endswith(".gltf"))
     raise IsochorError(f"cannot write {suffix!r} files")

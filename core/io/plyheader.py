@@ -77,7 +77,7 @@ class PlyHeader:
     def byte_order(self) -> str:
         """numpy's prefix for the data: ``"<"``, ``">"``, or ``""`` for ASCII (and for a
         header without a format line)."""
-        return ENCODINGS.get(self.encoding, "")
+        return ENCODINGS.get(self.encoding or "", "")
 
     def element(self, name: str) -> int | None:
         """The index of the first element called ``name``, None when there is none."""

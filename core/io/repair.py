@@ -172,7 +172,7 @@ def _join_caps(labels, n_bodies, body_of_side, loop_of_side, n_loops):
 
 def overlap_words(vertices, faces, labels, n_bodies: int, arrangement) -> list[str]:
     """One sentence per pair of overlapping bodies; two copies of one shape said so."""
-    words = []
+    words: list[str] = []
     if not arrangement.overlaps:
         return words
     counts = np.bincount(labels, minlength=n_bodies)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 import re
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from itertools import islice
 from pathlib import Path
@@ -154,7 +154,7 @@ def _floats(tokens: list[bytes], name: str, where: Callable[[int], str]) -> np.n
         raise IsochorError(f"{name}: {where(i)}: {text!r} is not a number") from None
 
 
-def _text(data: bytes, slots: list[tuple], fixed: list[tuple] = ()):
+def _text(data: bytes, slots: list[tuple], fixed: Sequence[tuple] = ()):
     """A text file's writer: it writes anew the changed numbers of ``slots`` (positions, normals:
     ``(spans (k, 3, 2), old values, float32)``) and makes the ``(start, end, text)`` ``fixed``."""
 
@@ -188,7 +188,7 @@ _OBJ_CORNER = re.compile(rb"(-?\d+)/-?\d*/(-?\d+)")  # v/vt/vn or v//vn
 def _parse_obj(data: bytes, name: str, source_dir, out_dir) -> _Parsed:
     if lone := re.search(rb"\r(?![\r\n])", data):  # old Mac line ends: lines would be lost
         raise IsochorError(f"{name}: {_line(data, lone.start())} ends in a lone carriage return")
-    found = {b"v": ([], []), b"vn": ([], [])}  # token spans, tokens
+    found: dict[bytes, tuple[list, list]] = {b"v": ([], []), b"vn": ([], [])}  # spans, tokens
     faces, libraries = [], []
     for s in _OBJ_STATEMENT.finditer(data):
         if (word := s.group(1)) in found:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import os
 from pathlib import Path
+from typing import Any
 
 #: the modules whose source decides the cache folder: every module that defines a compiled
 #: function or a helper compiled into one (``winding``), the options they are compiled with
@@ -90,10 +91,10 @@ try:
     import numba
     from numba import njit
 except Exception as exc:  # missing, or an install that does not import
-    numba = None
+    numba = None  # type: ignore[assignment]
     ERROR = f"numba does not import ({type(exc).__name__}: {exc})"
 
-    def njit(*args, **kwargs):
+    def njit(*args, **kwargs):  # type: ignore[no-redef]
         """Stand-in: returns the function unchanged."""
         if len(args) == 1 and callable(args[0]) and not kwargs:
             return args[0]
@@ -105,9 +106,14 @@ AVAILABLE = numba is not None
 #: the hot loops: no Python error checks for division, FMA contraction allowed (1 rounding
 #: instead of 2, well inside the tolerance); no reassociation, so loops over points keep
 #: the order of the NumPy path's sums
-KERNEL = {"cache": CACHE, "nogil": True, "error_model": "numpy", "fastmath": {"contract"}}
+KERNEL: dict[str, Any] = {
+    "cache": CACHE,
+    "nogil": True,
+    "error_model": "numpy",
+    "fastmath": {"contract"},
+}
 #: sums over points: reassociation lets them vectorise (several partial sums)
-REDUCE = {**KERNEL, "fastmath": {"contract", "reassoc"}}
+REDUCE: dict[str, Any] = {**KERNEL, "fastmath": {"contract", "reassoc"}}
 #: helpers inlined into the kernels (numba IR inlining; never compiled on their own)
-INLINE = {"error_model": "numpy", "fastmath": {"contract"}}
-INLINE_REDUCE = {**INLINE, "fastmath": {"contract", "reassoc"}}
+INLINE: dict[str, Any] = {"error_model": "numpy", "fastmath": {"contract"}}
+INLINE_REDUCE: dict[str, Any] = {**INLINE, "fastmath": {"contract", "reassoc"}}

@@ -79,7 +79,7 @@ class Edit:
             d: dict[str, Any] = {"node": list(mv.node)}
             if mv.by is not None:
                 d["by"] = list(mv.by)
-            else:
+            elif mv.to is not None:  # a move has by or to
                 d["to"] = list(mv.to)
             moves.append(d)
         pins: list[Any] = [list(p) for p in self.pins]

@@ -61,7 +61,7 @@ class Timeline:
     @classmethod
     def from_json(cls, items: Any, settings: Any, shape, version: int) -> Timeline | None:
         """The ``poses`` list and ``timeline`` object of a scenario (None without poses)."""
-        poses = []
+        poses: list[Pose] = []
         for n, doc in enumerate(as_list(items, "poses")):
             where = f"poses[{n}]"
             check_keys(doc, where, {"frame", "moves", "pins", "handles", RATIO.key}, {"frame"})

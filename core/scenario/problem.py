@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -206,7 +207,7 @@ def default_lattice_shape(mesh: TriMesh) -> tuple[int, int, int]:
     """The lattice a model opens in: 4 nodes along its longest extent, 3 along the others."""
     shape = [3, 3, 3]
     shape[int(np.argmax(mesh.extents))] = 4
-    return tuple(shape)
+    return cast("tuple[int, int, int]", tuple(shape))
 
 
 def coverage(lattice: Lattice, points: np.ndarray) -> str | None:
@@ -243,7 +244,11 @@ def build(
         )
     else:
         lattice = Lattice(
-            scenario.lattice_nodes, scenario.frame[0], scenario.frame[1], basis, outside
+            scenario.lattice_nodes,
+            np.asarray(scenario.frame[0]),
+            np.asarray(scenario.frame[1]),
+            basis,
+            outside,
         )
     nodes, fixed = scenario.edit.apply(lattice)
     Mirror.of(lattice, scenario.goal.symmetry)  # a frame the mirror cannot use fails here

@@ -143,7 +143,7 @@ def club_lattice() -> tuple[Lattice, np.ndarray]:
     """The fixed FFD that turns the unit sphere into the rounded club: a 4x3x3 lattice
     whose nodes stretch x by 3 and widen the cross-section from 0.55 at the handle (x < 0)
     to 1.1 at the head (x > 0)."""
-    lattice = Lattice((4, 3, 3), (-1.0, -1.0, -1.0), 2.0 * np.eye(3))
+    lattice = Lattice((4, 3, 3), np.full(3, -1.0), 2.0 * np.eye(3))
     nodes = lattice.rest_nodes.copy()
     t = (nodes[:, 0] + 1) / 2  # 0 at the handle, 1 at the head
     width = 0.55 + 0.55 * t**1.5

@@ -40,6 +40,7 @@ the Woodbury term is a scalar.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import scipy.linalg as la
@@ -109,7 +110,9 @@ class Curvature:
     """
 
     def __init__(self, hessian, order: np.ndarray | None = None, whole_nodes=False) -> None:
+        self._factor: Any  # cho_factor's (c, lower) once made
         self._factor, self.inverse, self._sparse = None, None, None
+        self._order: np.ndarray | None
         self._order, self._nodes = None, False
         if sp.issparse(hessian):
             if whole_nodes and hessian.shape[0] % 3 == 0 and hessian.shape[0] > NODE_FACTOR:
@@ -242,9 +245,10 @@ class Preconditioner:
     def __init__(self, curvature: Curvature, jacobian: np.ndarray) -> None:
         self.curvature = curvature
         jac = np.atleast_2d(np.asarray(jacobian, dtype=np.float64))
-        self._jac = jac if jac.size else None
+        self._jac: np.ndarray | None = jac if jac.size else None
         self._u = curvature.solve(jac.T) if curvature.ok and jac.size else None
-        self._sigma, self._apply = None, None
+        self._sigma: float | None = None
+        self._apply: Callable[[np.ndarray], np.ndarray] | None = None
 
     def stiffness(self) -> float:
         """The energy's stiffness against the constraints, ``kappa = 1 / lambda_min(J A^-1
@@ -272,7 +276,7 @@ class Preconditioner:
         a, u, jac = self.curvature, self._u, self._jac
         if not a.ok:
             return None
-        if u is None or not sigma > 0:
+        if u is None or jac is None or not sigma > 0:
             return a.solve if a.inverse is None else Product(a.inverse)
         if len(jac) == 1:  # the usual case, the volume alone: a scalar, no inverse
             s_inv = np.array([[1.0 / (1.0 / sigma + float(jac[0] @ u[:, 0]))]])

@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Generator
 from dataclasses import dataclass
 from functools import cached_property, partial
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -176,12 +177,12 @@ class Coordinates:
     ties : ``(dst, src, sign, offset)`` flat arrays, or None
     """
 
-    def __init__(self, free, center, size, ties=None) -> None:
+    def __init__(self, free, center, size, ties: tuple | None = None) -> None:
         free = np.asarray(free, dtype=bool)
         self.free = free[:, None].repeat(3, axis=1) if free.ndim == 1 else free.copy()
         self.center, self.size = np.asarray(center, dtype=np.float64), float(size)
         self._origin = np.broadcast_to(self.center, self.free.shape)[self.free]
-        empty = np.zeros(0, dtype=int)
+        empty: np.ndarray = np.zeros(0, dtype=int)
         self.dst, self.src, self.sign, self.offset = ties or (empty, empty, 0.0, 0.0)
         self._columns = np.flatnonzero(self.free.ravel())
         self.count = len(self._columns)
@@ -212,7 +213,7 @@ class Coordinates:
             (np.concatenate(v), (np.concatenate(r), np.concatenate(c))), shape=(self.count, n)
         )
 
-    def restrict(self, h: np.ndarray) -> np.ndarray:
+    def restrict(self, h: Any) -> np.ndarray:
         """A (3n, 3n) matrix over the node coordinates (a Hessian) as one over the
         variables, ``matrix @ h @ matrix.T``: a plain selection without ties."""
         if sp.issparse(h):  # a dense local lattice (core.springs.SPARSE_VARIABLES)
