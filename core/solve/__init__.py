@@ -2,6 +2,7 @@
 
 - :mod:`.multilevel`   the bootstrapping loop (Sec 4.3, Fig 4, Eq 27-29): ``solve``, the one
   solve generator every consumer drives; ``live=True`` for a drag's frames
+- :mod:`.plan`         Request, Plan, Iterate, Ending: what the solve's steps hand each other
 - :mod:`.solver`       augmented Lagrangian with an L-BFGS inner loop (Eq 15-21, Fig 3)
 - :mod:`.lbfgs`        the inner loop: L-BFGS as a generator, preconditioned
 - :mod:`.linesearch`   its strong-Wolfe line search (SciPy's, without importing scipy.optimize)

@@ -23,7 +23,9 @@ at once. The window, the command line, the benchmark and the tests all drive the
 from __future__ import annotations
 
 import time
-from collections.abc import Generator, Sequence
+from collections.abc import Callable, Generator, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -31,6 +33,7 @@ import scipy.sparse as sp
 from .. import blas, kernels
 from ..errors import IsochorError
 from ..goal.anchor import held_face
+from ..goal.constraints import Constraints
 from ..goal.handles import Handle, HandleSystem, handle_rows
 from ..goal.spec import Goal
 from ..goal.symmetry import Mirror
@@ -38,6 +41,7 @@ from ..lattice import Lattice
 from ..springs import sparse_hessian
 from .generators import relay
 from .outcome import outcome, preview
+from .plan import Ending, Iterate, Plan, Request
 from .records import LevelStats, Progress, SolveResult, frozen_copy
 from .solver import (
     Coordinates,
@@ -125,20 +129,36 @@ def solve(
     SolveResult, with the volumes, the folds and the centroid measured on the
     full-resolution mesh (on the preview level, with ``live``).
     """
-    opts = options or SolverOptions()
-    goal = goal or Goal(target_ratio=target_ratio)
-    t0 = time.perf_counter()
-    lattice = surface.lattice
-    x = np.array(nodes, dtype=np.float64).reshape(lattice.n_nodes, 3)
-    fixed = np.asarray(fixed, dtype=bool)
-    fixed = np.array(np.broadcast_to(fixed.reshape(-1, 1) if fixed.ndim == 1 else fixed, x.shape))
-    if not np.all(np.isfinite(x)):
-        raise IsochorError("A lattice node has a non-finite position.")
-    v_ref = abs(surface.rest_volume)
-    if v_ref <= 0:
-        raise IsochorError("The model encloses no volume, so there is no volume to preserve.")
-    size, center = surface.size, surface.center
-    handles = tuple(handles)
+    request = Request(
+        goal or Goal(target_ratio=target_ratio),
+        tuple(handles),
+        options or SolverOptions(),
+        start_level,
+        near,
+        live,
+    )
+    plan = prepare(surface, nodes, fixed, request, time.perf_counter())
+    if not plan.coords.count:
+        nothing = Ending(
+            plan.nodes, (), -1, np.zeros(1), 0.0, True, "no free node: nothing to solve"
+        )
+        return _result(plan, nothing)
+    yield _start_record(plan)
+    objective = _objective(plan)
+    level, start = _starting_point(plan, objective)
+    ending = yield from _run_levels(plan, objective, level, start)
+    return _result(plan, ending)
+
+
+def prepare(
+    surface: EmbeddedSurface, nodes: np.ndarray, fixed: np.ndarray, request: Request, t0: float
+) -> Plan:
+    """The solve's set-up: the start nodes checked and made symmetric, the handles
+    mirrored, the far-side face held, the free coordinates, the levels to run and the
+    handles' system."""
+    lattice, goal = surface.lattice, request.goal
+    x, fixed = _start_nodes(surface, nodes, fixed)
+    handles = request.handles
     mirror = Mirror.of(lattice, goal.symmetry)
     if mirror is not None:
         x, fixed = mirror.symmetric(x, fixed)
@@ -156,68 +176,124 @@ def solve(
             mirror_axis=None if mirror is None else mirror.axis,
         )
     fixed[held] = True
-    if live and mirror is None and not handles:
+    if request.live and mirror is None and not handles:
         fixed |= ~live_reach(lattice, x, fixed)[:, None]
-    free = ~fixed
-    if mirror is None:
-        coords = Coordinates(free, center, size)
-    else:
-        own, *ties = mirror.ties(free)
-        coords = Coordinates(own, center, size, tuple(ties))
-    n_levels = len(surface.levels)
-    if start_level is None:
-        start_level = next(
-            (k for k, m in enumerate(surface.levels) if m.n_faces >= opts.start_triangles),
-            n_levels - 1,
-        )
-    start_level = start_level % n_levels
-    top = n_levels - 1  # the level the solve ends on at the latest
-    if live:
-        top = live_level(surface, opts.live_triangles)
-        start_level, near = min(start_level, top), True
-    springs = surface.springs
+    coords = _coordinates(surface, ~fixed, mirror)
+    start_level, top = _levels_to_run(surface, request)
     system = None
     if handles and coords.count:
         spare = surface.constraints(start_level, goal).own
-        system = HandleSystem(lattice, handles, x, coords.reduce, spare, size, equations)
+        system = HandleSystem(lattice, handles, x, coords.reduce, spare, surface.size, equations)
+    return Plan(
+        surface=surface,
+        goal=goal,
+        options=request.options,
+        nodes=x,
+        coords=coords,
+        held=held,
+        face=face,
+        mirror=mirror,
+        system=system,
+        start_level=start_level,
+        top=top,
+        near=request.near or request.live,
+        live=request.live,
+        t0=t0,
+    )
 
-    def constraints(k):
-        return surface.constraints(k, goal, system)
 
-    def result(x, stats, terminal, lam, sigma, converged, message=""):
-        return (preview if live else outcome)(
-            surface, goal, opts, x, stats, terminal, lam, sigma, converged, message, held, face,
-            int(coords.moving.any(axis=1).sum()), t0, system, mirror,
-        )  # fmt: skip
+def _start_nodes(
+    surface: EmbeddedSurface, nodes: np.ndarray, fixed: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The nodes as an (n, 3) float array and ``fixed`` as (n, 3) bool, both the solve's
+    own copies; a non-finite node or a model without volume is refused."""
+    x = np.array(nodes, dtype=np.float64).reshape(surface.lattice.n_nodes, 3)
+    fixed = np.asarray(fixed, dtype=bool)
+    fixed = np.array(np.broadcast_to(fixed.reshape(-1, 1) if fixed.ndim == 1 else fixed, x.shape))
+    if not np.all(np.isfinite(x)):
+        raise IsochorError("A lattice node has a non-finite position.")
+    if abs(surface.rest_volume) <= 0:
+        raise IsochorError("The model encloses no volume, so there is no volume to preserve.")
+    return x, fixed
 
-    if not coords.count:
-        return result(x, [], -1, np.zeros(1), 0.0, True, "no free node: nothing to solve")
 
-    first = constraints(start_level)
+def _coordinates(surface: EmbeddedSurface, free: np.ndarray, mirror: Mirror | None) -> Coordinates:
+    """The solver's variables: the free coordinates, the high side tied to the low side
+    under a mirror."""
+    if mirror is None:
+        return Coordinates(free, surface.center, surface.size)
+    own, *ties = mirror.ties(free)
+    return Coordinates(own, surface.center, surface.size, tuple(ties))
+
+
+def _levels_to_run(surface: EmbeddedSurface, request: Request) -> tuple[int, int]:
+    """The first level to solve on and the last: the full mesh, or the preview level of a
+    live frame (where the solve starts no finer)."""
+    n_levels = len(surface.levels)
+    start_level = request.start_level
+    if start_level is None:
+        start_level = next(
+            (
+                k
+                for k, m in enumerate(surface.levels)
+                if m.n_faces >= request.options.start_triangles
+            ),
+            n_levels - 1,
+        )
+    start_level = start_level % n_levels
+    top = n_levels - 1
+    if request.live:
+        top = live_level(surface, request.options.live_triangles)
+        start_level = min(start_level, top)
+    return start_level, top
+
+
+def _start_record(plan: Plan) -> Progress:
+    """The record of the start state, step 0: it comes before any work on the fine
+    levels, so a window can redraw the user's edit at once. A solve whose free nodes
+    cannot change the volume is refused here."""
+    x, size = plan.nodes, plan.size
+    first = plan.constraints(plan.start_level)
     c, dc = first.values_and_jacobian(x)
-    if np.max(np.abs(coords.reduce(dc[: first.own]))) * size < 1e-9:
+    if np.max(np.abs(plan.coords.reduce(dc[: first.own]))) * size < 1e-9:
         raise IsochorError(
             "The free nodes cannot change the model's volume: choose free nodes that influence "
             "the model, or pin fewer nodes."
         )
-    # The first record comes before any work on the fine levels, so a window can redraw
-    # the user's edit at once.
-    yield Progress(
+    return Progress(
         frozen_copy(x),
-        start_level,
-        n_levels,
+        plan.start_level,
+        plan.n_levels,
         first.level.triangles,
         0,
         worst(c),
-        opts.sigma0,
+        plan.options.sigma0,
         0.0,
-        springs.energy(x) / size**2,
-        time.perf_counter() - t0,
+        plan.surface.springs.energy(x) / size**2,
+        time.perf_counter() - plan.t0,
     )
-    # the fold guard's samples (points inside the model: a second on a big model the
-    # first time) are found after the first record
+
+
+@dataclass(frozen=True, eq=False)
+class Objective:
+    """What every level minimises: the springs' energy (with the fold guard's penalty),
+    its gradient and Hessian, and the preconditioner's curvature the levels share."""
+
+    energy_and_gradient: Callable[[np.ndarray], tuple[float, np.ndarray]]
+    hessian: Callable[[np.ndarray], Any]
+    curvatures: Curvatures
+
+
+def _objective(plan: Plan) -> Objective:
+    """The spring energy, with the fold guard's penalty when the goal asks for it. The
+    guard's samples (points inside the model: a second on a big model the first time) are
+    found here, after the first record."""
+    surface, goal, size = plan.surface, plan.goal, plan.size
+    springs = surface.springs
+    margin = None
     if goal.fold_guard:
         guard = surface.fold_guard(FOLD_MARGIN * min(1.0, goal.target_ratio))
+        margin = guard.margin
 
         def energy_grad(x):
             e, de = springs.energy_and_gradient(x)
@@ -239,25 +315,24 @@ def solve(
     # drag's frame, its release) takes it from there while the nodes stayed near (a new
     # factorisation costs 50 ms at 8x8x8); any other solve takes its own, so that its
     # result never depends on what was solved before.
-    margin = guard.margin if goal.fold_guard else None
     curvatures = surface.shared(
-        ("curvatures", coords.key, margin),
-        lambda: Curvatures(hessian, coords, lattice.shape),
-        reuse=near,
+        ("curvatures", plan.coords.key, margin),
+        lambda: Curvatures(hessian, plan.coords, surface.lattice.shape),
+        reuse=plan.near,
     )
+    return Objective(energy_grad, hessian, curvatures)
 
-    lam, sigma = np.zeros(first.count), opts.sigma0
-    # A release or a sequence's frame on a big model asks the level below the full mesh
-    # where to start (see NEAR_REFERENCE_TRIANGLES); the full mesh is measured at the end.
-    reference = top
-    if near and not live and top > 0 and surface.levels[top].n_faces >= NEAR_REFERENCE_TRIANGLES:
-        reference = top - 1
-    warm = _warm_start(
-        constraints, top + 1, x, coords, energy_grad, opts, near, start_level, reference
-    )
-    x_prev = x
+
+def _starting_point(plan: Plan, objective: Objective) -> tuple[int, Iterate]:
+    """The level to start on and the nodes and multipliers to start from: a warm start
+    where the nodes already meet the goal, else the coarsest level with lambda 0 (and the
+    symmetric start nudged)."""
+    opts, x = plan.options, plan.nodes
+    level = plan.start_level
+    lam, sigma = np.zeros(plan.constraints(level).count), opts.sigma0
+    warm = _warm_start(plan, objective.energy_and_gradient)
     if warm is not None:  # already at the volume: skip the coarse levels whose optimum differs
-        start_level, lam = max(start_level, warm[0]), warm[1]
+        level, lam = max(level, warm[0]), warm[1]
         if opts.precondition:  # the multipliers are right already: hold the volume firmly
             sigma = max(sigma, opts.sigma_warm)
     elif opts.symmetry_break > 0:
@@ -265,96 +340,128 @@ def solve(
         # method and can end on a saddle (the torus stretch does). A tiny fixed-seed
         # nudge of the free coordinates lets the minimiser leave it; results stay
         # reproducible.
+        coords = plan.coords
         nudge = np.random.default_rng(0).standard_normal(coords.count)
         x = x.copy()
-        x[coords.free] += opts.symmetry_break * size * nudge
+        x[coords.free] += opts.symmetry_break * plan.size * nudge
         x = coords.tied(x)
+    return level, Iterate(x, lam, sigma)
+
+
+def _run_levels(
+    plan: Plan, objective: Objective, first: int, start: Iterate
+) -> Generator[Progress, None, Ending]:
+    """Solve level after level from ``first``, each from the last one's nodes and
+    multipliers, until a level meets the stopping test (see the module's docstring), the
+    top level is solved, or a level does not converge."""
+    opts = plan.options
+    at, x_prev = start, plan.nodes
     stats: list[LevelStats] = []
-    terminal = top
-    converged_level = False
-    for k in range(start_level, top + 1):
+    for k in range(first, plan.top + 1):
         t_level = time.perf_counter()
-        cons = constraints(k)
-        problem = LevelProblem(
-            x, coords, energy_grad, cons.values_and_jacobian, center, size, curvatures
-        )
-        run = augmented_lagrangian(problem, problem.to_y(x), lam, sigma, opts)
-
-        def progress(it, k=k, cons=cons, problem=problem):
-            return Progress(
-                problem.nodes_of(it.y),
-                k,
-                n_levels,
-                cons.level.triangles,
-                it.step,
-                it.deviation,
-                it.sigma,
-                it.lam,
-                it.energy,
-                time.perf_counter() - t0,
-            )
-
-        try:
-            al = yield from relay(run, progress)
-        except FloatingPointError:
-            raise IsochorError(
-                f"The solve broke down on level {k}: the lattice is folded so far that the "
-                "volume has no usable gradient. Undo the last move or pin fewer nodes."
-            ) from None
-        x = problem.to_nodes(al.y)
-        lam, sigma = al.lam, al.sigma
-        change = float(np.max(np.abs(x - x_prev))) / size
+        cons = plan.constraints(k)
+        al, x = yield from _solve_level(plan, objective, k, cons, at)
+        at = Iterate(x, al.lam, al.sigma)
+        change = float(np.max(np.abs(x - x_prev))) / plan.size
         estimate = None
         if k > 0:
-            coarse = constraints(k - 1)
+            coarse = plan.constraints(k - 1)
             estimate = _discretisation_error(coarse.values(x), cons.values(x), coarse, cons)
-        stats.append(
-            LevelStats(
-                k,
-                cons.level.triangles,
-                al.steps,
-                time.perf_counter() - t_level,
-                change,
-                al.deviation,
-                estimate,
-            )
-        )
-        yield Progress(
-            frozen_copy(x),
-            k,
-            n_levels,
-            cons.level.triangles,
-            al.steps,
-            al.deviation,
-            sigma,
-            float(lam[0]),
-            al.energy,
-            time.perf_counter() - t0,
-            True,
-            change,
-        )
+        triangles = cons.level.triangles
+        elapsed = time.perf_counter() - t_level
+        stats.append(LevelStats(k, triangles, al.steps, elapsed, change, al.deviation, estimate))
+        yield _level_record(plan, k, cons, al, x, change)
         if not al.converged:
-            return result(
-                x,
-                stats,
-                k,
-                lam,
-                sigma,
-                False,
-                f"the volume constraint did not converge on level {k}",
-            )
-        if k == top:
-            converged_level = True
-            break
-        if change < opts.tol_nodes and estimate is not None and estimate <= opts.tol_volume:
-            if not live:  # the full mesh's volume, and its folds for the result
-                surface.survey(x)
-            c_full = constraints(top).values(x)
-            if np.max(np.abs(c_full)) <= opts.tol_volume:
-                terminal, converged_level = k, True
-                break
+            message = f"the volume constraint did not converge on level {k}"
+            return _ending(at, stats, k, False, message)
+        if k == plan.top:
+            return _ending(at, stats, k, True)
+        settled = change < opts.tol_nodes and estimate is not None and estimate <= opts.tol_volume
+        if settled and _full_mesh_met(plan, x):
+            return _ending(at, stats, k, True)
         x_prev = x
-    return result(x, stats, terminal, lam, sigma, converged_level)
+    return _ending(at, stats, plan.top, False)
+
+
+def _solve_level(
+    plan: Plan, objective: Objective, k: int, cons: Constraints, at: Iterate
+) -> Generator[Progress, None, tuple[Any, np.ndarray]]:
+    """Level ``k``'s augmented Lagrangian from ``at``, a record every inner step; returns
+    its end and the nodes there."""
+    problem = LevelProblem(
+        at.nodes,
+        plan.coords,
+        objective.energy_and_gradient,
+        cons.values_and_jacobian,
+        plan.surface.center,
+        plan.size,
+        objective.curvatures,
+    )
+    run = augmented_lagrangian(problem, problem.to_y(at.nodes), at.lam, at.sigma, plan.options)
+
+    def progress(it):
+        return Progress(
+            problem.nodes_of(it.y),
+            k,
+            plan.n_levels,
+            cons.level.triangles,
+            it.step,
+            it.deviation,
+            it.sigma,
+            it.lam,
+            it.energy,
+            time.perf_counter() - plan.t0,
+        )
+
+    try:
+        al = yield from relay(run, progress)
+    except FloatingPointError:
+        raise IsochorError(
+            f"The solve broke down on level {k}: the lattice is folded so far that the "
+            "volume has no usable gradient. Undo the last move or pin fewer nodes."
+        ) from None
+    return al, problem.to_nodes(al.y)
+
+
+def _level_record(
+    plan: Plan, k: int, cons: Constraints, al, x: np.ndarray, change: float
+) -> Progress:
+    """The record that closes level ``k``."""
+    return Progress(
+        frozen_copy(x),
+        k,
+        plan.n_levels,
+        cons.level.triangles,
+        al.steps,
+        al.deviation,
+        al.sigma,
+        float(al.lam[0]),
+        al.energy,
+        time.perf_counter() - plan.t0,
+        True,
+        change,
+    )
+
+
+def _full_mesh_met(plan: Plan, x: np.ndarray) -> bool:
+    """The stopping test's last question, asked once a level's nodes settled and its
+    discretisation error is within the tolerance: does the top level meet the goal? (The
+    full mesh's volume, and its folds for the result, are surveyed in one pass first.)"""
+    if not plan.live:
+        plan.surface.survey(x)
+    c_full = plan.constraints(plan.top).values(x)
+    return bool(np.max(np.abs(c_full)) <= plan.options.tol_volume)
+
+
+def _ending(
+    at: Iterate, stats: list[LevelStats], k: int, converged: bool, message: str = ""
+) -> Ending:
+    return Ending(at.nodes, tuple(stats), k, at.lam, at.sigma, converged, message)
+
+
+def _result(plan: Plan, ending: Ending) -> SolveResult:
+    """The result: measured on the full mesh, or on the preview level of a live frame."""
+    return (preview if plan.live else outcome)(plan, ending)
 
 
 #: a solve ``near`` the one before (not a live frame) on a full mesh of at least this many
@@ -368,27 +475,40 @@ def solve(
 NEAR_REFERENCE_TRIANGLES = 200_000
 
 
-def _warm_start(
-    constraints, n, x, coords, energy_grad, opts, near=False, first=0, reference=None
-) -> tuple[int, np.ndarray] | None:
-    """Where to start when ``x`` already meets the goal (a re-solve, a small edit).
+def _reference_level(plan: Plan) -> int:
+    """The level that stands for the full mesh where the warm start looks: the level
+    below it for a solve ``near`` the one before on a big full mesh (see
+    :data:`NEAR_REFERENCE_TRIANGLES`), else the top level."""
+    top = plan.top
+    big = top > 0 and plan.surface.levels[top].n_faces >= NEAR_REFERENCE_TRIANGLES
+    return top - 1 if plan.near and not plan.live and big else top
 
-    Returns the coarsest level whose own constraints at ``x`` agree with the full mesh's to
-    within the tolerance, and the least-squares Lagrange multipliers there, or None when
-    ``x`` does not meet the goal (then the solve starts at the coarsest level with lambda 0).
-    A converged result restarted this way stops after one level and no steps, instead of
-    re-deriving a different equilibrium from the coarse levels (the paper's Plate 6).
-    ``constraints(k)`` are level k's constraints, of ``n`` levels (the last is the reference,
-    the full mesh but in a live preview). With ``near`` the goal need not be met at ``x``:
-    the level is the coarsest whose constraints differ from the reference's by at most the
-    tolerance. Without ``near``, the levels from ``first`` up are asked first
-    (:func:`_missed`): a drag that changed the volume is seen there, and the full mesh is
-    not evaluated at all. ``reference`` (with ``near`` only) is the level that stands for
-    the full mesh, ``n - 1`` by default.
+
+def _warm_start(plan: Plan, energy_grad) -> tuple[int, np.ndarray] | None:
+    """Where to start when the plan's nodes already meet the goal (a re-solve, a small edit).
+
+    Returns the coarsest level whose own constraints at the nodes agree with the top
+    level's to within the tolerance, and the least-squares Lagrange multipliers there, or
+    None when the nodes do not meet the goal (then the solve starts at the coarsest level
+    with lambda 0). A converged result restarted this way stops after one level and no
+    steps, instead of re-deriving a different equilibrium from the coarse levels (the
+    paper's Plate 6). With ``plan.near`` the goal need not be met: the level is the
+    coarsest whose constraints differ from the reference's (:func:`_reference_level`) by
+    at most the tolerance. Without it, the levels from ``plan.start_level`` up are asked
+    first (:func:`_missed`): a drag that changed the volume is seen there, and the full
+    mesh is not evaluated at all.
     """
-    if not near and _missed(constraints, n, x, opts, first):
+    constraints, n, x, coords, opts = (
+        plan.constraints,
+        plan.top + 1,
+        plan.nodes,
+        plan.coords,
+        plan.options,
+    )
+    near = plan.near
+    if not near and _missed(constraints, n, x, opts, plan.start_level):
         return None
-    last = n - 1 if reference is None or not near else reference
+    last = _reference_level(plan) if near else n - 1
     c_full = constraints(last).values(x)
     if np.max(np.abs(c_full)) > opts.tol_volume and not near:
         return None

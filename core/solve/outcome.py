@@ -15,33 +15,25 @@ import numpy as np
 
 from ..errors import IsochorError
 from ..goal.handles import handles_sentence
+from .plan import Ending, Plan
 from .records import BodyVolume, SolveResult, frozen_copy
 from .solver import worst
 
 
-def outcome(
-    surface,
-    goal,
-    opts,
-    x,
-    stats,
-    terminal,
-    lam,
-    sigma,
-    converged,
-    message,
-    held,
-    face,
-    n_free,
-    t0,
-    system=None,
-    mirror=None,
-) -> SolveResult:
+def outcome(plan: Plan, end: Ending) -> SolveResult:
     """The result measured on the full mesh: volumes, bodies, centroid, folds, where each
-    handle's point ended (``system``, a :class:`~isochor.core.goal.handles.HandleSystem`) and the
-    asymmetry (``mirror``); a result that misses a constraint, folds the model or turns its
-    volume's sign is no success. Handles that cannot all be met are fitted by least squares
-    and said so in the message: that is the best the lattice can do, not a failure."""
+    handle's point ended (the plan's handle system) and the asymmetry (its mirror); a
+    result that misses a constraint, folds the model or turns its volume's sign is no
+    success. Handles that cannot all be met are fitted by least squares and said so in the
+    message: that is the best the lattice can do, not a failure."""
+    surface, goal, opts, system, mirror = (
+        plan.surface,
+        plan.goal,
+        plan.options,
+        plan.system,
+        plan.mirror,
+    )
+    x, converged = end.nodes, end.converged
     full = surface.level(-1)
     size = surface.size
     surface.survey(x)  # the volume and det J at the vertices in one pass, where it can
@@ -78,7 +70,7 @@ def outcome(
             f"the result is folded: {100 * folds.fraction:.3g}% of the model is turned "
             "inside out (det J <= 0)"
         )
-    elif folds.folded:
+    elif folds.witness is not None:  # folded between the samples
         where = ", ".join(f"{c:.6g}" for c in folds.witness)
         problems.append(
             f"the result is folded: a pocket inside the model between the fold check's "
@@ -103,26 +95,26 @@ def outcome(
         handles = system.results(x, len(system.handles) // (2 if mirror else 1))
     fitted = handles_sentence(handles)
     notes = [n for n in (fitted, unproven) if n]
-    message = "; ".join(([message] if message else []) + problems + notes)
+    message = "; ".join(([end.message] if end.message else []) + problems + notes)
     return SolveResult(
         frozen_copy(x),
-        tuple(stats),
-        terminal,
+        end.stats,
+        end.terminal,
         v0,
         target,
         v_final,
         (v_final - target) / abs(v0),
         energy,
-        n_free,
-        time.perf_counter() - t0,
+        plan.n_free,
+        time.perf_counter() - plan.t0,
         ok,
         message,
-        float(np.atleast_1d(lam)[0]),
-        sigma,
+        float(np.atleast_1d(end.lam)[0]),
+        end.sigma,
         target_error=(v_final - target) / abs(target),
         constraint_error=worst(c),
-        held=tuple(int(r) for r in np.flatnonzero(held)),
-        held_face=face,
+        held=tuple(int(r) for r in np.flatnonzero(plan.held)),
+        held_face=plan.face,
         folds=folds,
         bodies=bodies,
         centroid_shift=shift,
@@ -131,39 +123,38 @@ def outcome(
     )
 
 
-def preview(
-    surface, goal, opts, x, stats, terminal, lam, sigma, converged, message, held, face, n_free,
-    t0, system=None, mirror=None,
-) -> SolveResult:  # fmt: skip
-    """A live drag's frame, measured on the level it was solved on (``terminal``) and never
-    on the full mesh: the volume is that level's, scaled by the full mesh's rest volume
-    over the level's; folds, bodies, the centroid and the handles are not measured. It is
-    for showing, not for keeping: the solve when the drag ends measures the real result."""
+def preview(plan: Plan, end: Ending) -> SolveResult:
+    """A live drag's frame, measured on the level it was solved on (``end.terminal``) and
+    never on the full mesh: the volume is that level's, scaled by the full mesh's rest
+    volume over the level's; folds, bodies, the centroid and the handles are not measured.
+    It is for showing, not for keeping: the solve when the drag ends measures the real
+    result."""
+    surface, goal, x, terminal = plan.surface, plan.goal, end.nodes, end.terminal
     level = surface.level(terminal)
     v0 = surface.rest_volume
     v_final = level.volume(x) * v0 / level.rest_volume
     target = goal.target_ratio * v0
-    c = surface.constraints(terminal, goal, system).values(x)
+    c = plan.constraints(terminal).values(x)
     if not (np.all(np.isfinite(x)) and np.isfinite(v_final)):
         raise IsochorError("The solve broke down: its numbers overflowed.")
     return SolveResult(
         frozen_copy(x),
-        tuple(stats),
+        end.stats,
         terminal,
         v0,
         target,
         v_final,
         (v_final - target) / abs(v0),
         surface.springs.energy(x) / surface.size**2,
-        n_free,
-        time.perf_counter() - t0,
-        converged and np.max(np.abs(c)) <= opts.tol_volume,
-        "; ".join(filter(None, [message, f"preview on level {terminal}"])),
-        float(np.atleast_1d(lam)[0]),
-        sigma,
+        plan.n_free,
+        time.perf_counter() - plan.t0,
+        end.converged and np.max(np.abs(c)) <= plan.options.tol_volume,
+        "; ".join(filter(None, [end.message, f"preview on level {terminal}"])),
+        float(np.atleast_1d(end.lam)[0]),
+        end.sigma,
         target_error=(v_final - target) / abs(target),
         constraint_error=worst(c),
-        held=tuple(int(r) for r in np.flatnonzero(held)),
-        held_face=face,
+        held=tuple(int(r) for r in np.flatnonzero(plan.held)),
+        held_face=plan.face,
         preview=True,
     )
