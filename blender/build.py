@@ -10,7 +10,8 @@ versions of :data:`COMPILED`), for Python 3.11 (Blender 4.2 to 5.0) on each plat
 (``--platform``: ``all`` or ``current``). Blender's own extension tool then builds one zip
 per platform (``blender_ext.py build --split-platforms``, from the ``bpy`` package, or
 ``blender --command extension ...``), each holding its platform's wheels, and validates it.
-The manifest's version must be the package's (``isochor/__init__.py``).
+The manifest's version must be the package's (``isochor/__init__.py``); its ``website`` is
+written from ``pyproject.toml``'s ``Homepage``.
 
     python blender/build.py [--platform all|current] [--out dist]
 """
@@ -20,12 +21,14 @@ from __future__ import annotations
 import argparse
 import importlib.metadata
 import importlib.util
+import json
 import re
 import shutil
 import subprocess
 import sys
 import sysconfig
 import tempfile
+import tomllib
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -91,6 +94,18 @@ def manifest_version() -> str:
     return re.search(r'^version = "(.+)"$', text, re.M).group(1)
 
 
+def homepage() -> str:
+    """The project's Homepage (``pyproject.toml``'s ``[project.urls]``)."""
+    with (ROOT / "pyproject.toml").open("rb") as f:
+        return str(tomllib.load(f)["project"]["urls"]["Homepage"])
+
+
+def manifest_website() -> str:
+    """The website the source manifest says."""
+    with (HERE / "blender_manifest.toml").open("rb") as f:
+        return str(tomllib.load(f)["website"])
+
+
 def _pip(*args: str) -> None:
     subprocess.run([sys.executable, "-m", "pip", "--disable-pip-version-check", *args], check=True)
 
@@ -143,6 +158,7 @@ def build(out: Path, which: str = "all") -> list[Path]:
         lines = ",\n".join(f'  "{w}"' for w in listed)
         text = re.sub(r"^wheels = \[\]$", f"wheels = [\n{lines},\n]", text, flags=re.M)
         names = ", ".join(f'"{p}"' for p in platforms)
+        text = re.sub(r"^website = .*$", f"website = {json.dumps(homepage())}", text, flags=re.M)
         text = re.sub(r"^platforms = \[\]$", f"platforms = [{names}]", text, flags=re.M)
         manifest.write_text(text)
         made = out / f"isochor-{tmp.rsplit('-', 1)[-1]}"

@@ -938,6 +938,15 @@ def test_the_manifest_says_the_packages_version():
     assert manifest_version() == version()
 
 
+def test_the_manifest_says_the_projects_homepage():
+    """The source manifest's website is pyproject.toml's Homepage (build.py writes it into
+    the built manifest; the install test reads it there)."""
+    from blender.build import homepage, manifest_website
+
+    assert homepage().startswith("https://")
+    assert manifest_website() == homepage()
+
+
 def test_the_extension_package_builds_and_installs(tmp_path):
     """``make addon`` (here: this platform's zip only), validated by Blender's tool, then
     installed into a fresh Blender user folder of an interpreter that holds only bpy,
@@ -964,6 +973,9 @@ def test_the_extension_package_builds_and_installs(tmp_path):
     platform = re.search(r"^platforms = \[(.*)\]$", manifest, re.M)
     assert platform and platform.group(1) == '"linux-x64"' and "linux_x64" in package.name
     assert re.search(r'^copyright = \[".+"\]$', manifest, re.M)
+    from blender.build import homepage
+
+    assert re.search(rf'^website = "{re.escape(homepage())}"$', manifest, re.M)
     licence = zipfile.ZipFile(package).read("LICENSE").decode()
     assert "GNU GENERAL PUBLIC LICENSE" in licence and "Version 3" in licence
     if (ROOT / "LICENSE").is_file():  # the library's own (MIT), beside the add-on's
