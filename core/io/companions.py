@@ -6,9 +6,12 @@
   window's) is checked against this list before any work
   (:func:`isochor.core.io.atomic.check_outputs`), so no output destroys a file the model
   needs.
-- :func:`confined`: a glTF ``uri`` as a file under the model's folder, or one line saying
-  why it is refused (an absolute path, a scheme such as ``file:`` or ``http:``, a ``..``
-  leading out of the folder, a link pointing out of it). ``data:`` URIs are read in place.
+- :func:`confined`: a glTF ``uri``, or an OBJ's material library or texture name, as a
+  file under the model's folder, or one line saying why it is refused (an absolute path, a
+  scheme such as ``file:`` or ``http:``, a ``..`` leading out of the folder, a link
+  pointing out of it). ``data:`` URIs are read in place. Nothing outside the model's
+  folder is ever opened: :func:`outside_names` says which names were refused, one line
+  each, for the loader's warnings.
 
 Listing never fails: a file that cannot be read or parsed adds nothing (reading it later
 says what is wrong with it).
@@ -16,6 +19,7 @@ says what is wrong with it).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -54,16 +58,17 @@ def model_inputs(path: str | Path, role: str = "the model") -> list[tuple[Path, 
     return found
 
 
-def confined(base_dir: str | Path | None, uri: str, what: str) -> Path:
-    """The file a glTF's relative ``uri`` names under ``base_dir`` (None: only the URI's
-    own form is checked, and the relative path is returned).
+def confined(base_dir: str | Path | None, uri: str, what: str, owner: str = "glTF") -> Path:
+    """The file a glTF's relative ``uri`` (or, with ``owner`` "OBJ", a material library's
+    or texture's name, taken literally) names under ``base_dir`` (None: only the name's own
+    form is checked, and the relative path is returned).
 
     Raises
     ------
     IsochorError
-        The URI is absolute, has a scheme, or leads out of the folder (by ``..`` or by a
+        The name is absolute, has a scheme, or leads out of the folder (by ``..`` or by a
         symbolic link): a model may only read files beside it or below."""
-    text = unquote(str(uri))
+    text = unquote(str(uri)) if owner == "glTF" else str(uri)
     why = None
     if _URI_SCHEME.match(text) or text.startswith(("/", "\\")) or os.path.isabs(text):
         why = "it is not a relative path"
@@ -84,9 +89,10 @@ def confined(base_dir: str | Path | None, uri: str, what: str) -> Path:
         else:
             return path
     shown = text if len(text) <= 80 else text[:77] + "..."
+    tail = ", or embed them as data: URIs" if owner == "glTF" else ""
     raise IsochorError(
-        f"its {what} {shown!r} is refused: {why}; a glTF may only name files in its own "
-        "folder or below, or embed them as data: URIs"
+        f"its {what} {shown!r} is refused: {why}; a{'n' if owner == 'OBJ' else ''} {owner} "
+        f"may only name files in its own folder or below{tail}"
     )
 
 
@@ -106,9 +112,11 @@ def _read_head(path: Path) -> bytes:
         return fh.read(MAX_SCAN_BYTES)
 
 
-def _names(body: bytes, folder: Path) -> list[Path]:
-    """The files a statement's body names: the whole body if it is a file (a name with
-    spaces), else each word that is."""
+def _names(body: bytes, folder: Path, base: Path, refused: list[str]) -> list[Path]:
+    """The files a statement's body names, relative to ``folder``, confined to ``base``
+    (the model's folder): the whole body if it is a file (a name with spaces), else each
+    word that is. A name leading out of ``base`` is never opened, nor even looked at: its
+    sentence goes to ``refused``."""
     body = body.strip()
     if not body:
         return []
@@ -116,23 +124,60 @@ def _names(body: bytes, folder: Path) -> list[Path]:
     # the whole rest, or the rest after some options (-s 1 1 1 wood map.png): a name
     # with spaces
     for start in range(len(words)):
-        whole = folder / os.fsdecode(b" ".join(words[start:]))
-        if _regular(whole):
+        whole = _inside(folder, base, os.fsdecode(b" ".join(words[start:])))
+        if whole is not None and _regular(whole):
             return [whole]
-    return [p for p in (folder / os.fsdecode(w) for w in words) if _regular(p)]
-
-
-def _obj_files(path: Path) -> list[tuple[Path, str]]:
     found = []
+    for w in words:
+        path = _inside(folder, base, os.fsdecode(w), refused)
+        if path is not None and _regular(path):
+            found.append(path)
+    return found
+
+
+def _inside(folder: Path, base: Path, name: str, refused: list[str] | None = None):
+    """``folder / name`` when it lies in ``base`` or below, else None (and, given
+    ``refused``, the sentence saying so, for a name that looks like a file)."""
+    try:
+        relative = os.path.relpath(os.path.join(folder, name), base)
+        path = confined(base, relative, "file", "OBJ") if not os.path.isabs(name) else None
+    except (IsochorError, ValueError):
+        path = None
+    if path is None and refused is not None and re.search(r"[./\\]", name):
+        shown = name if len(name) <= 80 else name[:77] + "..."
+        line = (
+            f"{shown!r} is outside the model's folder: not read (an OBJ may only name "
+            "files in its own folder or below)"
+        )
+        if line not in refused:
+            refused.append(line)
+    return path
+
+
+def _obj_files(path: Path, refused: list[str] | None = None) -> list[tuple[Path, str]]:
+    found = []
+    refused = [] if refused is None else refused
+    base = path.parent
     for m in _MTLLIB.finditer(_read_head(path)):
-        for lib in _names(m.group(1), path.parent):
+        for lib in _names(m.group(1), base, base, refused):
             found.append((lib, f"the model's material library {lib.name}"))
-            for t in _textures(lib):
+            for t in _textures(lib, base, refused):
                 found.append((t, f"the model's texture {t.name}"))
     return found
 
 
-def _textures(library: Path) -> list[Path]:
+def outside_names(path: str | Path) -> list[str]:
+    """One sentence for each name an OBJ's ``mtllib`` lines or its material libraries'
+    texture statements give that leads out of the model's folder (never opened)."""
+    path = Path(os.path.abspath(path))
+    refused: list[str] = []
+    if path.suffix.lower() == ".obj":
+        with contextlib.suppress(OSError, ValueError):
+            _obj_files(path, refused)
+    return refused
+
+
+def _textures(library: Path, base: Path, refused: list[str]) -> list[Path]:
     try:
         text = _read_head(library)
     except OSError:
@@ -141,7 +186,8 @@ def _textures(library: Path) -> list[Path]:
     for m in _MAPS.finditer(text):
         # options come first (-s 1 1 1 -clamp on ...): the file is the whole rest, a name
         # with spaces, or else its words that are files (the last one, in practice)
-        found += [p for p in _names(m.group(1), library.parent) if p not in found]
+        names = _names(m.group(1), library.parent, base, refused)
+        found += [p for p in names if p not in found]
     return found
 
 

@@ -4,7 +4,8 @@ a copy of a mesh for each transform it is used under; :func:`animate_gltf` keeps
 adds one morph target per frame of a sequence with the animation of their weights. A
 written file travels: a GLB embeds every image it uses, a .gltf keeps only images beside
 it as separate files and embeds the others. Refused in one line naming the
-file: compression, quantized or sparse vertex data, GPU instancing, damaged files."""
+file: compression, quantized or sparse vertex data, GPU instancing, a required extension it
+does not support (named), damaged files."""
 
 from __future__ import annotations
 
@@ -36,6 +37,16 @@ _COMPONENTS = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 _DEFORMED = {"POSITION": 3, "NORMAL": 3, "TANGENT": 4}  # semantic -> components
 _COMPRESSION = {"KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_meshopt_compression"}
+#: required extensions that change nothing Isochor reads or writes (materials, textures,
+#: lights): a file requiring only these is read; any other required one is refused
+_HARMLESS_PREFIX = "KHR_materials_"
+_HARMLESS = {
+    "KHR_texture_transform",
+    "KHR_texture_basisu",
+    "KHR_lights_punctual",
+    "EXT_texture_webp",
+    "EXT_texture_avif",
+}
 _DAMAGED = (LookupError, TypeError, ValueError, AttributeError, ArithmeticError, RecursionError)
 
 
@@ -206,6 +217,7 @@ class _Gltf:
         used = {*self.doc.get("extensionsUsed", []), *self.doc.get("extensionsRequired", [])}
         if used & _COMPRESSION:
             self.fail("compressed meshes are not supported; export without Draco or meshopt")
+        self._required(self.doc.get("extensionsRequired", []))
         buffers = self.doc.get("buffers", [])
         self._confine(base_dir)  # every URI checked before any file is read
         self.buffers = [self._buffer(i, b, binary, base_dir) for i, b in enumerate(buffers)]
@@ -226,6 +238,18 @@ class _Gltf:
                     confined(base_dir, uri, what)
                 except IsochorError as exc:
                     self.fail(str(exc))
+
+    def _required(self, names) -> None:
+        """Refuse a file that requires an extension Isochor does not read (glTF 2.0: a
+        loader must not load it), naming it."""
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            self.fail("extensionsRequired is not a list of names")
+        for extension in names:
+            if not extension.startswith(_HARMLESS_PREFIX) and extension not in _HARMLESS:
+                self.fail(
+                    f"it requires the glTF extension {show(extension)}, which Isochor does "
+                    "not support; export it without that extension"
+                )
 
     def fail(self, message: str) -> NoReturn:
         raise IsochorError(f"{self.name}: {message}")

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import IsochorError
+from .companions import confined
 from .gltf import MAX_GLB_BYTES
 
 _FLOAT, _UINT = 5126, 5125
@@ -122,8 +123,29 @@ def model_as_glb(path: Path) -> bytes:
     import trimesh
 
     try:
-        loaded: Any = trimesh.load(str(path), process=False, maintain_order=True)  # a scene or mesh
+        loaded: Any = trimesh.load(  # a scene or mesh
+            str(path), process=False, maintain_order=True, resolver=_confined_resolver(path)
+        )
         return bytes(loaded.export(file_type="glb"))
     except Exception as exc:  # trimesh raises anything on a file it rejects
         detail = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
         raise IsochorError(f"{path.name}: cannot write it as glTF ({detail})") from None
+
+
+def _confined_resolver(path: Path):
+    """trimesh's file resolver for ``path``'s material libraries and textures, confined to
+    the model's folder (:func:`isochor.core.io.companions.confined`): a name leading out
+    of it is not found, and never opened."""
+    import trimesh.resolvers
+
+    class Confined(trimesh.resolvers.FilePathResolver):
+        def get(self, name: str) -> bytes:
+            try:
+                inside = confined(path.parent, name, "file", "OBJ")
+            except IsochorError:
+                raise FileNotFoundError(name) from None
+            if not inside.is_file():
+                raise FileNotFoundError(name)
+            return inside.read_bytes()
+
+    return Confined(str(path))

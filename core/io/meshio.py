@@ -2,8 +2,9 @@
 write meshes.
 
 Reading (:func:`load_mesh`) goes through trimesh (polygons are triangulated by its readers;
-glTF through :mod:`isochor.core.io.gltf`, node transforms applied; a binary PLY of triangles
-or of mixed polygons, as Blender writes it, and a plain OBJ of triangles straight into numpy,
+glTF through :mod:`isochor.core.io.gltf`, node transforms applied; OBJ through
+:mod:`isochor.core.io.objfile`, errors naming the line; a binary PLY of triangles or of
+mixed polygons, as Blender writes it, and a plain OBJ of triangles straight into numpy,
 :func:`binary_ply` and :func:`plain_obj`), then
 :func:`isochor.core.io.repair.clean_closed_surface` welds, checks and orients the surface.
 Any problem a file can have ends in one :class:`IsochorError` that names the file;
@@ -35,7 +36,9 @@ from ..mesh import TriMesh
 from ..validate import MAX_COORDINATE, input_file
 from ..volume import signed_volume
 from .atomic import atomic_write_bytes
+from .companions import outside_names
 from .formats import GLTF_FORMATS, READ_FORMATS, WRITE_FORMATS, listing
+from .objfile import read_obj
 from .plyheader import PlyHeader
 from .repair import clean_closed_surface
 
@@ -85,7 +88,8 @@ def load_mesh(path: str | Path) -> LoadedMesh:
         mesh, warns, bodies = clean_closed_surface(vertices, faces, parts)
     except IsochorError as exc:
         raise IsochorError(f"{path.name}: {exc}") from None
-    return LoadedMesh(mesh, warns, bodies, path)
+    outside = [f"Its material library or texture {line}." for line in outside_names(path)]
+    return LoadedMesh(mesh, warns + outside, bodies, path)
 
 
 def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -123,8 +127,12 @@ def _read_raw(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         return (*_checked(path, kind, vertices, faces), parts)
     if kind == "ply" and (direct := binary_ply(data)) is not None:
         return (*_checked(path, kind, *direct), None)
-    if kind == "obj" and (direct := plain_obj(data)) is not None:
-        return (*_checked(path, kind, *direct), None)
+    if kind == "obj":
+        direct = plain_obj(data)
+        if direct is not None:
+            return (*_checked(path, kind, *direct), None)
+        vertices, faces, parts = read_obj(data, path.name)
+        return (*_checked(path, kind, vertices, faces), parts)
     import trimesh  # heavy: imported on the first read
 
     try:
@@ -149,38 +157,10 @@ _STL_SOLIDS = re.compile(rb"^\s*endsolid", re.M)
 
 
 def file_objects(kind: str, data: bytes, vertices: np.ndarray, faces: np.ndarray):
-    """(f,) the file's object of each triangle as trimesh read them: an OBJ's ``o``/``g``
-    objects, an ASCII STL's ``solid`` blocks; None for one object, or when the file's
-    triangles cannot be matched one to one with what was read (nothing is assumed)."""
-    if kind == "obj" and len(_OBJ_OBJECT.findall(data)) > 1:
-        part, per_face, first = 0, [], []
-        points: list[bytes] = []
-        for line in data.splitlines():
-            head = line[:2]
-            if head in (b"v ", b"v\t"):
-                points.append(line)
-            elif head in (b"o ", b"g ", b"o\t", b"g\t"):
-                part += 1
-            elif head in (b"f ", b"f\t"):
-                corners = line.split()[1:]
-                n = max(len(corners) - 2, 0)
-                per_face += [part] * n
-                first += [(corners[0], len(points))] * n  # (a negative index counts back)
-        if len(per_face) != len(faces) or not per_face or len(set(per_face)) < 2:
-            return None
-        # the first corner of (a sample of) the triangles must be where trimesh put it
-        sample = np.unique(np.linspace(0, len(first) - 1, min(len(first), 2000)).astype(int))
-        try:
-            coords = []
-            for k in sample:
-                token, seen = first[k]
-                i = int(token.split(b"/")[0])
-                coords.append([float(x) for x in points[seen + i if i < 0 else i - 1].split()[1:4]])
-        except (ValueError, IndexError):
-            return None
-        if not np.array_equal(np.array(coords), vertices[faces[sample, 0]]):
-            return None
-        return np.asarray(per_face)
+    """(f,) the file's object of each triangle as trimesh read them: an ASCII STL's
+    ``solid`` blocks (an OBJ's objects come from :func:`.objfile.read_obj`); None for one
+    object, or when the file's triangles cannot be matched one to one with what was read
+    (nothing is assumed)."""
     if kind == "stl" and len(_STL_SOLIDS.findall(data)) > 1:
         blocks = _STL_SOLIDS.split(data)[:-1]
         counts = [len(re.findall(rb"^\s*facet\b", b, re.M)) for b in blocks]

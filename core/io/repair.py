@@ -6,7 +6,11 @@
    within 1e-9 of the model size (at most 10^4 typical edges, so one stray far vertex does
    not weld the rest together), so the weld does not depend on the model's units. The
    file's separate objects (OBJ ``o``/``g``, STL ``solid``, glTF meshes) that are closed on
-   their own are never welded to another object (:func:`weld_parts`);
+   their own are never welded to another object (:func:`weld_parts`). Welding is kept
+   only where it keeps the surface manifold: when it would join solids (an edge of more
+   than two triangles, two faces cancelling), the pieces the file's own vertex indices
+   keep apart and that are closed on their own stay apart (many pieces in one object,
+   touching at shared coordinates);
 2. triangles with a repeated corner are dropped, and so are duplicate triangles (two
    copies of one triangle wound opposite ways cancel, like a double wall; same-way copies
    are kept once); unreferenced vertices are dropped;
@@ -76,13 +80,25 @@ def clean_closed_surface(
         open sheet, loose triangles).
     """
     warns: list[str] = []
-    vertices, faces, apart = weld_parts(vertices, faces, parts)
-    if apart:
+    welded = _weld_and_drop(vertices, faces, parts)
+    if welded[4] or EdgeReport.of(welded[1], len(welded[0])).non_manifold:
+        # the weld joins solids (edges of more than two triangles, faces that cancel):
+        # keep apart the pieces the file's own indices keep apart, where each is closed
+        pieces = _index_pieces(faces, parts)
+        if pieces is not None:
+            alone = _weld_and_drop(vertices, faces, pieces)
+            if alone[2] and _joins(alone) < _joins(welded):
+                welded = alone
+                warns.append(
+                    f"Kept {alone[2]} pieces apart that touch at shared coordinates (each "
+                    "closed on its own: welding them would join solids along edges or faces)."
+                )
+                parts = None
+    vertices, faces, apart, n_degenerate, n_duplicate = welded
+    if apart and parts is not None:
         warns.append(
             f"Kept {apart} separate objects of the file apart (not welded where they touch)."
         )
-    faces, n_degenerate = drop_degenerate(faces)
-    faces, n_duplicate = drop_duplicates(faces)
     if n_degenerate:
         warns.append(f"Removed {n_degenerate} degenerate triangle(s) (a repeated corner).")
     if n_duplicate:
@@ -157,6 +173,32 @@ def clean_closed_surface(
             "typical size away (a damaged file?); the lattice is fitted around them too."
         )
     return TriMesh(vertices, faces, n_caps, n_cap_faces), warns, n_bodies
+
+
+def _weld_and_drop(vertices, faces, parts):
+    """(vertices, faces, closed parts kept apart, degenerate and duplicate triangles
+    dropped): :func:`weld_parts`, then :func:`drop_degenerate` and :func:`drop_duplicates`."""
+    vertices, faces, apart = weld_parts(vertices, faces, parts)
+    faces, n_degenerate = drop_degenerate(faces)
+    faces, n_duplicate = drop_duplicates(faces)
+    return vertices, faces, apart, n_degenerate, n_duplicate
+
+
+def _joins(welded) -> int:
+    """How much a weld joined solids: its non-manifold edges and its cancelled triangles."""
+    vertices, faces = welded[0], welded[1]
+    return EdgeReport.of(faces, len(vertices)).non_manifold + welded[4] if len(faces) else 0
+
+
+def _index_pieces(faces: np.ndarray, parts: np.ndarray | None) -> np.ndarray | None:
+    """(f,) the piece of each triangle: triangles joined by edges of the file's own vertex
+    indices, within the file's objects (``parts``); None for one piece."""
+    labels, count = body_labels(faces)
+    if count < 2:
+        return None
+    if parts is not None and len(parts) == len(faces):
+        labels = np.unique(np.column_stack([parts, labels]), axis=0, return_inverse=True)[1]
+    return np.asarray(labels).ravel()
 
 
 def _join_caps(labels, n_bodies, body_of_side, loop_of_side, n_loops):
