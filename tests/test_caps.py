@@ -233,14 +233,22 @@ def test_suzanne_like_model_solves_with_the_right_bodies(tmp_path):
 
 
 def test_non_manifold_edges_are_split_into_sheets():
-    """Two cubes sharing one edge (four triangles on it) in one object: two solids."""
+    """Two cubes sharing one edge (four triangles on it) in one object: two solids, whether
+    the file indexes the edge's corners once (a non-manifold edge, split into sheets) or
+    each cube has its own (pieces closed on their own, kept apart rather than welded)."""
     a = trimesh.creation.box()
     b = trimesh.creation.box().apply_translation((1, 1, 0))
     v = np.vstack([a.vertices, b.vertices])
     f = np.vstack([a.faces, b.faces + len(a.vertices)])
     mesh, words, bodies = clean_closed_surface(v, f)
     assert bodies == 2 and mesh.cap_faces == 0
-    assert any("non-manifold" in w and "1 non-manifold edge" in w for w in words)
+    assert any("Kept 2 pieces apart" in w for w in words), words
+    assert capped_volume(mesh.vertices, mesh.faces) == pytest.approx(2.0, rel=1e-12)
+    shared, index = np.unique(v, axis=0, return_inverse=True)
+    mesh, words, bodies = clean_closed_surface(shared, index.reshape(-1)[f])
+    assert len(shared) == len(v) - 2  # the two corners of the shared edge, indexed once
+    assert bodies == 2 and mesh.cap_faces == 0
+    assert any("non-manifold" in w and "1 non-manifold edge" in w for w in words), words
     assert not any("overlap" in w for w in words)  # they touch along an edge only
     report = EdgeReport.of(mesh.faces, mesh.n_vertices)
     assert report.boundary == 0 and report.non_manifold == 0
