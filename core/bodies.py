@@ -24,8 +24,12 @@ from .kernels.winding import half_solid_angle
 BUDGET = 50_000_000
 #: sample points per body and pair in the overlap test
 SAMPLES = 48
-#: |winding number| above this: inside; below 1 - this: outside; between: on the surface
-INSIDE = 0.75
+#: |winding number| above this: inside, half-way between outside's 0 and inside's 1 (the
+#: label of a point of a closed mesh, as the fold check and its certificate take it)
+WINDING_INSIDE = 0.5
+#: |winding number| above this: clearly inside; below 1 - this: clearly outside; between:
+#: on the surface (the containment and overlap tests ask for a margin)
+CLEARLY_INSIDE = 0.75
 #: (point, triangle) pairs per block of the winding numbers
 WINDING_BLOCK = 1 << 16
 #: triangles per block of :func:`tetra_volumes` (ten rows of them stay in the CPU cache)
@@ -120,11 +124,11 @@ def _within(mine: np.ndarray, other: np.ndarray, rng) -> bool:
     corners = mine.reshape(-1, 3)
     if len(corners) > SAMPLES:
         corners = corners[rng.choice(len(corners), SAMPLES, replace=False)]
-    return bool(np.all(np.abs(winding_numbers(corners, other)) > 1 - INSIDE))
+    return bool(np.all(np.abs(winding_numbers(corners, other)) > 1 - CLEARLY_INSIDE))
 
 
 def _inside(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    return np.abs(winding_numbers(points, triangles)) > INSIDE
+    return np.abs(winding_numbers(points, triangles)) > CLEARLY_INSIDE
 
 
 def orient(

@@ -38,7 +38,7 @@ from typing import cast
 
 import numpy as np
 
-from ..bodies import winding_numbers
+from ..bodies import WINDING_INSIDE, winding_numbers
 from ..lattice import Lattice
 
 #: most boxes examined per certification (each a few hundred to a few thousand numbers)
@@ -49,8 +49,6 @@ MAX_NUMBERS = 40_000_000
 MIN_WIDTH = 2.0**-14
 #: cells per axis of the occupancy grid over the lattice
 OCCUPANCY_CELLS = 48
-#: |winding number| above this: inside
-INSIDE = 0.5
 
 
 @dataclass(frozen=True)
@@ -238,7 +236,7 @@ class Occupancy:
             centres = (np.array(first, dtype=np.float64).reshape(-1, 3) + 0.5) / g
             world = lattice.origin + centres @ lattice.axes
             triangles = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64)]
-            inside[1:] = np.abs(winding_numbers(world, triangles)) > INSIDE
+            inside[1:] = np.abs(winding_numbers(world, triangles)) > WINDING_INSIDE
         self.solid = surface | inside[labels]
         # prefix sums: how many solid (and surface) cells a block holds, in O(1)
         self._sum = _prefix(self.solid)
@@ -271,7 +269,7 @@ class Occupancy:
         near = self._surface[c[:, 0], c[:, 1], c[:, 2]]
         if near.any():
             world = self._lattice.origin + uvw[near] @ self._lattice.axes
-            out[near] = np.abs(winding_numbers(world, self._triangles)) > INSIDE
+            out[near] = np.abs(winding_numbers(world, self._triangles)) > WINDING_INSIDE
         return out
 
 

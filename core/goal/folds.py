@@ -25,6 +25,7 @@ import scipy.sparse as sp
 
 from .. import kernels
 from .. import localbasis as lb
+from ..bodies import WINDING_INSIDE
 from ..errors import IsochorError
 from ..inside import grid_winding
 from ..lattice import Lattice
@@ -38,8 +39,6 @@ from .certify import Occupancy, certify, supported
 #: fold check of the torus compression's 35k samples faulted 1045 pages instead of 1700 at
 #: 4096 (5.1 against 6.3 ms; its first solve 23.1 -> 22.5 ms); warm, 3.2 against 2.9 ms
 BLOCK = 2048
-#: |winding number| above this: inside
-INSIDE = 0.5
 #: (point, node) entries per block while building the guard's basis gradients (their
 #: temporaries, a few of this size, stay small enough to be reused from block to block)
 GUARD_BLOCK = 1 << 16
@@ -96,7 +95,7 @@ def interior_points(mesh: TriMesh, count: int = 2000, budget: int = 20_000_000) 
         step = ext / cells
         winding = grid_winding(mesh.vertices, mesh.faces, lo, step, cells)
         axes = [lo[c] + (np.arange(cells[c]) + 0.5) * step[c] for c in range(3)]
-        where = np.nonzero(np.abs(winding) > INSIDE)
+        where = np.nonzero(np.abs(winding) > WINDING_INSIDE)
         inside = np.stack([axes[c][where[c]] for c in range(3)], axis=1)
         room = int(budget) // mesh.n_faces
         if len(inside) >= count / 2 or int(np.prod(cells)) >= room:
