@@ -3,6 +3,8 @@
 - :mod:`.formats`   the file suffixes Isochor reads and writes (their one owner)
 - :mod:`.meshio`    read OBJ/PLY/STL/OFF/glTF into a clean closed TriMesh (through
   :mod:`.repair`); write a mesh anew
+- :mod:`.objfile`   the OBJ reader by the format's rules (indices from 1, negative ones
+  relative, objects apart), every error naming the file and line
 - :mod:`.plyheader` the PLY header: its one parser and the one table of PLY's scalar types
   (for :mod:`.meshio` and :mod:`.roundtrip`)
 - :mod:`.repair`    weld, drop degenerate triangles, split, repair winding, cap, orient
