@@ -133,7 +133,7 @@ def test_work_survives_a_sigkill_and_is_recovered_at_the_next_start(qtbot, theme
     assert win.autosave.offer()
     assert seen and "torus_knot_quads.obj had unsaved changes" in seen[0]
     st = win.state
-    assert st.problem.scenario.model_path() == path.resolve()
+    assert st.problem.scenario.model_path().resolve() == path.resolve()
     assert st.moved.sum() > 0 and np.allclose(st.nodes[st.moved], edited[st.moved], atol=1e-9)
     assert not win.undo_stack.isClean() and " * " in win.windowTitle()
     assert not left.exists(), "the recovered file is gone"
