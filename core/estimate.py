@@ -223,6 +223,27 @@ def estimate(what: Any, machine: Machine | None = None) -> Estimate:
     return Estimate(sizes, memory, units, machine or Machine.here())
 
 
+#: a unit no machine is slower than (a loaded, slow machine's 1 GB sum): a solve under the
+#: time limit even at this unit needs no measurement of this one
+SLOWEST_UNIT = 2.0
+
+
+def screen(what: Any, time_limit: float | None = None) -> Estimate | None:
+    """None when a solve of ``what`` surely fits this machine (its memory fits and it
+    would be under ``time_limit``, :data:`TIME_LIMIT` by default, even at
+    :data:`SLOWEST_UNIT`: nothing is measured, so a small solve pays only the count);
+    otherwise its :class:`Estimate` on this machine,
+    whose :meth:`~Estimate.memory_fits` and :meth:`~Estimate.time_fits` the caller acts on
+    (refuse, or warn and go on)."""
+    limit = TIME_LIMIT if time_limit is None else time_limit
+    sizes = Sizes.of(what)
+    memory, units = cost(sizes)
+    free = available_memory()
+    if memory <= MEMORY_SHARE * free and units * SLOWEST_UNIT <= limit:
+        return None
+    return Estimate(sizes, memory, units, Machine(free, machine_unit(), limit))
+
+
 def largest_fitting(what: Any, machine: Machine | None = None) -> tuple[int, int, int] | None:
     """The largest lattice shaped like ``what``'s that fits ``machine``, or None."""
     sizes, m = Sizes.of(what), machine or Machine.here()

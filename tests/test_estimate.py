@@ -136,3 +136,97 @@ def test_memory_estimate_against_a_solve_out_of_process(n, subdivisions):
     e = estimate(Sizes((n, n, n), True, got["triangles"]), Machine(math.inf, 1.0))
     ratio = got["peak"] / e.memory_bytes
     assert 1 / est.MEMORY_FACTOR <= ratio <= est.MEMORY_FACTOR, (ratio, got, e.memory_bytes)
+
+
+# -- the refusals: the API and the command line ------------------------------------------
+def _session(n: int, **options):
+    import trimesh
+
+    from isochor.core.api import Session
+
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    session = Session((mesh.vertices, mesh.faces), lattice=(n, n, n), basis="bspline", **options)
+    session.move((n - 1, n // 2, n // 2), by=(1.2 / n, 0.0, 0.0))
+    return session
+
+
+def test_api_refuses_a_slow_solve_unless_forced(monkeypatch):
+    from isochor.core.errors import IsochorError
+
+    monkeypatch.setattr(est, "TIME_LIMIT", 1e-6)  # every solve is too slow
+    session = _session(6)
+    before = session.nodes.copy()
+    with pytest.raises(
+        IsochorError, match=r"^a 6x6x6 lattice needs about .*\(force=True solves it anyway\)$"
+    ):
+        session.solve()
+    assert np.array_equal(session.nodes, before) and session.result is None
+    forced = _session(6, force=True)
+    assert forced.solve().converged
+    with pytest.raises(IsochorError, match="force must be True or False"):
+        _session(6, force="yes")
+
+
+def test_api_refuses_memory_even_when_forced(monkeypatch):
+    from isochor.core.errors import IsochorError
+
+    monkeypatch.setattr(est, "available_memory", lambda: 1e8)  # 100 MB free
+    with pytest.raises(IsochorError, match=r"this machine has 100 MB free; no lattice fits"):
+        _session(6, force=True).solve()
+
+
+#: the child's address space: its estimate's "free memory" (RLIMIT_AS caps MemAvailable)
+CHILD_SPACE = 3 << 30
+
+
+def _limited() -> None:
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (CHILD_SPACE, CHILD_SPACE))
+
+
+def test_cli_refuses_a_lattice_beyond_the_memory_in_one_line(tmp_path):
+    from pathlib import Path
+
+    scene = tmp_path / "big.json"
+    scene.write_text(
+        json.dumps(
+            {
+                "model": {"builtin": "torus"},
+                "lattice": {"nodes": [48, 48, 48], "basis": "bspline"},
+                "moves": [{"node": [47, 24, 24], "by": [0.01, 0, 0]}],
+            }
+        )
+    )
+    out = tmp_path / "o.ply"
+    run = subprocess.run(
+        [sys.executable, "-m", "isochor.app.cli.main", "solve", str(scene), "--out", str(out)],
+        cwd=Path(__file__).resolve().parents[1],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+        preexec_fn=_limited,
+    )
+    assert run.returncode == 1, run.stderr
+    assert run.stderr.count("\n") == 1 and "Traceback" not in run.stderr
+    assert run.stderr.startswith("isochor: a 48x48x48 lattice needs about ")
+    assert "GB free; " in run.stderr and " fits" in run.stderr
+    assert not out.exists()
+
+
+def test_cli_refuses_a_slow_solve_unless_forced(tmp_path, monkeypatch, capsys):
+    from isochor.app.cli.main import main
+
+    monkeypatch.setattr(est, "TIME_LIMIT", 1e-6)  # every solve is too slow
+    out = tmp_path / "o.ply"
+    assert main(["solve", "--example", "torus-compression", "--out", str(out), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("isochor: a 3x3x3 lattice needs about ")
+    assert err.rstrip().endswith("(--force solves it anyway)") and not out.exists()
+    assert (
+        main(["solve", "--example", "torus-compression", "--out", str(out), "-q", "--force"]) == 0
+    )
+    err = capsys.readouterr().err
+    assert "isochor: warning: a 3x3x3 lattice needs about " in err and "(--force)" in err
+    assert out.exists()
