@@ -478,9 +478,10 @@ def run_solve(
     """Drive the session's solve (:meth:`isochor.core.api.Session.steps`) to its end,
     printing one row per level (the progress ``line`` wiped before each).
 
-    A signal (Ctrl-C, SIGTERM, SIGHUP) is answered at the next step
-    (:func:`isochor.app.cli.interrupts.check`): the generator is closed (the solve stops)
-    and the interrupt raised.
+    A signal (Ctrl-C, SIGTERM, SIGHUP) is answered within
+    :data:`~isochor.app.cli.interrupts.POLL` seconds, even inside a long C call: the solve
+    runs on a worker thread (:func:`isochor.app.cli.interrupts.run_answering`), which
+    stops (the generator closed) at its next step, and the interrupt is raised here.
 
     Returns
     -------
@@ -514,7 +515,9 @@ def run_solve(
         if p.level_done:
             last[0] = p.elapsed
 
-    return run_to_end(run, row)
+    # on a worker thread: the main thread answers a signal even while one step runs long
+    # inside a C call (a big lattice's sparse factorisation)
+    return interrupts.run_answering(lambda: run_to_end(run, row))
 
 
 def caps_words(mesh) -> str:
