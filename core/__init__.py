@@ -32,6 +32,8 @@ Modules at this level:
 - :mod:`.bodies`    separate closed bodies of one model: cavities, overlaps (winding numbers)
 - :mod:`.inside`    which points of a regular grid are inside a closed mesh (signed ray
   crossings per grid column; the fold guard's interior samples)
+- :mod:`.estimate`  a solve's peak memory and time before it starts, from its sizes, and
+  whether this machine has them (the one line that refuses it, the largest lattice that fits)
 - :mod:`.api`       the Python API: ``deform``, ``Session``, ``load``
 - :mod:`.adapters`  the mesh types the API takes and gives back (arrays, trimesh, pyvista)
 - :mod:`.export`    the one export path (``--out``, the window's Export, ``Session.export``)

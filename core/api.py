@@ -26,6 +26,7 @@ import numpy as np
 
 from .adapters import CallerMesh
 from .errors import IsochorError
+from .estimate import screen
 from .export import Exported, export_bytes, export_file
 from .goal.handles import Handle
 from .goal.spec import GOAL_FIELDS, Goal
@@ -103,6 +104,10 @@ class Session:
         while the model loads and its level pyramid is made (here), ``("solve", f)`` during
         every solve (f from 0 to 1, never decreasing within a stage; 1 at its end). It is
         called on the thread that does the work: keep it quick
+    force : solve even when the estimate before each solve (:mod:`isochor.core.estimate`)
+        says it takes longer than the time limit; a solve whose memory does not fit this
+        machine is always refused (:class:`IsochorError`, one line with the largest
+        lattice that fits)
     goal : what the solve holds, by the keywords of
         :data:`~isochor.core.goal.spec.GOAL_FIELDS` (each field's ``keyword``):
 
@@ -155,19 +160,34 @@ class Session:
         basis: str | Sequence[str] | None = None,
         outside: bool | None = None,
         progress: ProgressCallback | None = None,
+        force: bool = False,
         **goal: Any,
     ) -> None:
         by_keyword = {f.keyword: f for f in GOAL_FIELDS}
         for name in goal:
             if name not in by_keyword:
                 known = ", ".join(
-                    ["lattice", "padding", "frame", "basis", "outside", "progress", *by_keyword]
+                    [
+                        "lattice",
+                        "padding",
+                        "frame",
+                        "basis",
+                        "outside",
+                        "progress",
+                        "force",
+                        *by_keyword,
+                    ]
                 )
                 raise IsochorError(f"unknown keyword {name!r}; the known ones are {known}")
         if progress is not None and not callable(progress):
             raise IsochorError("progress must be a callable(stage, fraction), or None")
         #: ``callable(stage, fraction)`` told how far loading and each solve are, or None
         self.progress = progress
+        if not isinstance(force, bool):
+            raise IsochorError(f"force must be True or False, got {force!r}")
+        #: solve even when the estimate (:mod:`isochor.core.estimate`) says it takes longer
+        #: than its time limit; a solve whose memory does not fit is always refused
+        self.force = force
         self._mesh: CallerMesh | None = None
         if isinstance(source, Scenario):
             scenario, model = source, scenario_model(source, progress=progress)
@@ -344,7 +364,12 @@ class Session:
     def steps(self) -> Generator[Progress, None, SolveResult]:
         """Solve step by step: yields a :class:`~isochor.core.solve.records.Progress` record per
         inner step and level, returns the result; the session's nodes become the result's.
-        Closing the generator stops the solve and keeps the nodes as they were."""
+        Closing the generator stops the solve and keeps the nodes as they were.
+
+        A solve beyond this machine (:func:`isochor.core.estimate.screen`) raises
+        :class:`IsochorError` with the estimate's line before any work: one whose memory
+        does not fit always, one that takes longer than the time limit unless ``force``."""
+        self._screen()
         nodes, goal = self._checked_nodes(), self.goal
         held = tuple((tuple(h.at), tuple(h.to)) for h in self.handles)
         edit = (self.fixed.tobytes(), goal, held)
@@ -355,6 +380,16 @@ class Session:
         self.nodes = np.array(result.nodes)
         self.result, self._solved = result, (edit if result.converged else None)
         return result
+
+    def _screen(self) -> None:
+        """Refuse a solve beyond this machine (see :meth:`steps`)."""
+        estimate = screen(self.problem)
+        if estimate is None or estimate.fits():
+            return
+        if not estimate.memory_fits():
+            raise IsochorError(estimate.message())
+        if not self.force:
+            raise IsochorError(f"{estimate.message()} (force=True solves it anyway)")
 
     def _solving(self, nodes: np.ndarray, goal: Goal, near: bool):
         """The solve of the current edit: ``near`` the last result for a small edit, and a
@@ -532,7 +567,7 @@ def deform(
         kept on some axes only
     handles : ``{"at": [x, y, z], "to": [x, y, z]}`` (or
         :class:`~isochor.core.goal.handles.Handle`): the mesh's point ``at`` must land at ``to``
-    options : ``padding``, ``frame``, ``basis``, ``outside``, ``progress``
+    options : ``padding``, ``frame``, ``basis``, ``outside``, ``progress``, ``force``
         (``callable(stage, fraction)``: how far loading and the solve are) and the goal's
         keywords (``target``: the volume to reach relative to the mesh's, 1 by default;
         ``preserve``, ``keep_centroid``, ``anchor``, ``fold_guard``, ``symmetry``): see

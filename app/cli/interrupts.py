@@ -17,6 +17,15 @@ on the run completes (all or none). A signal that arrives during the renames is 
 when they are done (:func:`finish`): the line then says every output was written. After
 that the run's status is decided and later signals are ignored.
 
+**A long C call cannot hold the answer.** A safe point comes only between Python steps,
+and one step of a big lattice's solve can be a minute inside SciPy's sparse LU. The solve
+therefore runs on a worker thread (:func:`run_answering`) while the main thread waits and
+looks for a signal every :data:`POLL` seconds: a signal is answered then, with the same
+line and status, however long the worker's call goes on (SuperLU and NumPy's big loops
+release the GIL). The abandoned worker stops at its next safe point (:func:`check` raises
+there too) and never writes: the outputs are written by the main thread after the solve,
+and the process ends without waiting for the worker (``entry``'s ``leave_now``).
+
 A signal the parent process ignores (``nohup``, a background job) stays ignored.
 """
 
@@ -24,7 +33,15 @@ from __future__ import annotations
 
 import signal
 import sys
+import threading
+from collections.abc import Callable
 from contextlib import suppress
+from typing import TypeVar
+
+T = TypeVar("T")
+
+#: how often the main thread looks for a signal while a worker runs (:func:`run_answering`)
+POLL = 0.05
 
 SIGNALS = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
@@ -68,6 +85,9 @@ class State:
     done = False
     #: ``sys.unraisablehook`` before :func:`install`
     previous_hook = None
+    #: the main thread answered a signal and left the worker of :func:`run_answering`:
+    #: the worker's next :func:`check` stops it
+    abandoned = False
 
 
 state = State()
@@ -108,18 +128,54 @@ def arm() -> None:
     """A run starts: from now on :func:`check` raises a recorded signal; one received
     before (while the program was imported) is raised now."""
     state.raised, state.committed, state.done = None, False, False
+    state.abandoned = False
     state.armed = True
     check()
 
 
+_LOCK = threading.Lock()
+
+
 def check() -> None:
     """A safe point: raise :class:`Interrupted` if a signal was received (and the run is
-    armed and not committed)."""
-    signum = state.pending
-    if signum is not None and state.armed and not state.committed:
-        state.armed = False
-        state.raised, state.pending = signum, None
-        raise Interrupted(signum)
+    armed and not committed); on an abandoned worker thread, always."""
+    with _LOCK:  # the main thread and a worker: one of them raises a signal, once
+        if state.abandoned and threading.current_thread() is not threading.main_thread():
+            raise Interrupted(state.raised or signal.SIGTERM)
+        signum = state.pending
+        if signum is not None and state.armed and not state.committed:
+            state.armed = False
+            state.raised, state.pending = signum, None
+            raise Interrupted(signum)
+
+
+def run_answering(work: Callable[[], T]) -> T:
+    """``work()`` on a worker thread, this (the main) thread waiting and answering a
+    signal within :data:`POLL` seconds (see the module's text): :class:`Interrupted` is
+    raised here then, the worker left to stop at its next :func:`check`. What ``work``
+    returns or raises comes back here. From any other thread, ``work()`` runs at once."""
+    if threading.current_thread() is not threading.main_thread():
+        return work()
+    box: dict[str, object] = {}
+
+    def target() -> None:
+        try:
+            box["value"] = work()
+        except BaseException as exc:  # handed to the main thread, raised there
+            box["error"] = exc
+
+    worker = threading.Thread(target=target, name="isochor-solve", daemon=True)
+    worker.start()
+    try:
+        while worker.is_alive():
+            worker.join(POLL)
+            check()
+    except BaseException:
+        state.abandoned = True
+        raise
+    if "error" in box:
+        raise box["error"]  # type: ignore[misc]
+    return box["value"]  # type: ignore[return-value]
 
 
 def hold() -> None:
@@ -176,5 +232,5 @@ def release() -> None:
     state.previous.clear()
     if sys.unraisablehook is _unraisable:
         sys.unraisablehook, state.previous_hook = state.previous_hook, None
-    state.armed = state.committed = state.done = False
+    state.armed = state.committed = state.done = state.abandoned = False
     state.pending = state.raised = None

@@ -267,6 +267,12 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument("--report", type=Path, metavar="JSON", help="the report (JSON)")
     solve.add_argument("--quiet", "-q", action="store_true", help="no per-level table")
     solve.add_argument(
+        "--force",
+        action="store_true",
+        help="solve even when the estimate says it takes longer than the time limit "
+        "(a solve whose memory does not fit is always refused)",
+    )
+    solve.add_argument(
         "--sequence",
         metavar="PATTERN",
         help="solve the scenario's poses: one file per frame (frame_####.obj) or one animated .glb",
@@ -366,11 +372,12 @@ def _solve(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     line = ProgressLine(sys.stderr)  # on a terminal only, for a load or solve that takes long
     try:
-        session = open_session(scenario, progress=line if line.on else None)
+        session = open_session(scenario, progress=line if line.on else None, force=args.force)
         line.clear()
         interrupts.check()
         for w in session.warnings:
             print(f"isochor: warning: {w}", file=sys.stderr)
+        _screen(session, args.force)
         console = PipeSafe(sys.stdout)
         result = run_solve(session, None if args.quiet else console, line)
     finally:
@@ -418,6 +425,22 @@ def _solve(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _screen(session: Session, force: bool) -> None:
+    """Refuse a solve beyond this machine (:func:`isochor.core.estimate.screen`) in one
+    line: its memory always, its time unless ``--force`` (then a warning, and the solve
+    goes on with its progress)."""
+    from ...core.estimate import screen
+
+    estimate = screen(session)
+    if estimate is None or estimate.fits():
+        return
+    if not estimate.memory_fits():
+        raise IsochorError(estimate.message())
+    if not force:
+        raise IsochorError(f"{estimate.message()} (--force solves it anyway)")
+    print(f"isochor: warning: {estimate.message()}; solving anyway (--force)", file=sys.stderr)
+
+
 def _basis(scenario, text: str):
     """``scenario`` with the lattice basis of ``--basis`` (one name or three, comma-separated),
     checked as the scenario's ``lattice.basis`` is."""
@@ -455,9 +478,10 @@ def run_solve(
     """Drive the session's solve (:meth:`isochor.core.api.Session.steps`) to its end,
     printing one row per level (the progress ``line`` wiped before each).
 
-    A signal (Ctrl-C, SIGTERM, SIGHUP) is answered at the next step
-    (:func:`isochor.app.cli.interrupts.check`): the generator is closed (the solve stops)
-    and the interrupt raised.
+    A signal (Ctrl-C, SIGTERM, SIGHUP) is answered within
+    :data:`~isochor.app.cli.interrupts.POLL` seconds, even inside a long C call: the solve
+    runs on a worker thread (:func:`isochor.app.cli.interrupts.run_answering`), which
+    stops (the generator closed) at its next step, and the interrupt is raised here.
 
     Returns
     -------
@@ -491,7 +515,9 @@ def run_solve(
         if p.level_done:
             last[0] = p.elapsed
 
-    return run_to_end(run, row)
+    # on a worker thread: the main thread answers a signal even while one step runs long
+    # inside a C call (a big lattice's sparse factorisation)
+    return interrupts.run_answering(lambda: run_to_end(run, row))
 
 
 def caps_words(mesh) -> str:

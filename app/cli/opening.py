@@ -51,7 +51,7 @@ def steady_heap() -> bool:
     )
 
 
-def open_session(scenario: Scenario, progress=None) -> Session:
+def open_session(scenario: Scenario, progress=None, force: bool = False) -> Session:
     """The scenario's session, with the compiled kernels where they pay: a big model file
     starts them once its level pyramid is made (they load while the problem is built) and
     the solve waits for them; a small model never loads them, since numba would load
@@ -63,7 +63,8 @@ def open_session(scenario: Scenario, progress=None) -> Session:
     memory goes when the child ends, and numba's 110 MB would add to the child's peak.
 
     ``progress``: ``callable(stage, fraction)`` while the model loads (see
-    :class:`isochor.core.api.Session`)."""
+    :class:`isochor.core.api.Session`); ``force``: the session's (solve even when the
+    estimate says it is too slow)."""
     from ...core import kernels
     from ...core.api import Session
 
@@ -82,7 +83,8 @@ def open_session(scenario: Scenario, progress=None) -> Session:
         if progress is not None:
             progress(stage, fraction)
 
-    session = Session(scenario, progress=told) if progress or big else Session(scenario)
+    told_or_none = told if progress or big else None
+    session = Session(scenario, progress=told_or_none, force=force)
     if kernels.worth(session.problem.surface.full.n_faces):
         kernels.ready()
     return session

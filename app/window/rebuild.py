@@ -25,6 +25,9 @@ import threading
 from PySide6.QtCore import QObject, Signal
 
 from ...core.errors import IsochorError
+from ...core.estimate import Sizes, screen
+from ...core.lattice import basis_names
+from ...core.localbasis import BERNSTEIN
 from ..editor import latticerules
 from ..view.meshprep import DisplayPrep
 from .loading import Gate
@@ -89,6 +92,8 @@ class LatticeRebuild(QObject):
         once for a small model (True when the lattice changed), on a thread for a big one
         (True: it started)."""
         win = self.win
+        if not self._affordable(shape, basis):
+            return False
         self.cancel()
         base = win.doc.base()
         if win.state.surface.full.n_faces <= BACKGROUND_FACES:
@@ -106,6 +111,24 @@ class LatticeRebuild(QObject):
         self.threads = [t for t in self.threads if t.is_alive()] + [thread]
         win.statusBar().showMessage("Rebuilding the lattice {}x{}x{}…".format(*shape))
         thread.start()
+        return True
+
+    def _affordable(self, shape, basis) -> bool:
+        """Whether a solve on the new lattice fits this machine (:mod:`isochor.core.estimate`):
+        one whose memory does not fit is not rebuilt, the line that says so in the status
+        bar; one over the time limit is rebuilt, the line shown as a warning (the solve
+        runs in the background with its progress, and stops at the next edit)."""
+        surface = self.win.state.surface
+        names = basis_names(basis) if basis is not None else surface.lattice.basis
+        nx, ny, nz = (int(n) for n in shape)
+        sizes = Sizes((nx, ny, nz), names[0] != BERNSTEIN, surface.full.n_faces)
+        estimate = screen(sizes)
+        if estimate is None or estimate.fits():
+            return True
+        if not estimate.memory_fits():
+            self.win.statusBar().showMessage(f"The lattice was not rebuilt: {estimate.message()}")
+            return False
+        self.win.statusBar().showMessage(f"Warning: {estimate.message()}", 10_000)
         return True
 
     def cancel(self) -> None:
