@@ -5,6 +5,7 @@ Modules: :mod:`.rig` (the mesh and lattice as arrays, bpy-free: point orders, th
 session, the capped solid whose volume is kept), :mod:`.scene` (reading and checking
 Blender's data, writing points, volumes),
 :mod:`.solving` (one solve on a background thread, the live solver, the bake),
+:mod:`.sessions` (the Isochor session kept between solves of one mesh and lattice),
 :mod:`.export` (the scene's problem as an Isochor scenario), :mod:`.caps` (an open mesh's
 caps made real geometry), :mod:`.operators` (Preserve
 Volume, Live, Bake, Measure, Export Scenario, Add Caps), :mod:`.panel` (the sidebar panel and its
@@ -16,6 +17,7 @@ from __future__ import annotations
 import bpy
 
 from . import operators, panel
+from .sessions import SESSIONS
 
 _CLASSES = panel.CLASSES + operators.CLASSES
 
@@ -30,3 +32,4 @@ def unregister() -> None:
     del bpy.types.Scene.isochor
     for cls in reversed(_CLASSES):
         bpy.utils.unregister_class(cls)
+    SESSIONS.clear()

@@ -2,7 +2,9 @@
 (:class:`Solve`: Blender's data read before it starts and written after it ends, both on
 Blender's main thread; the thread runs Isochor on arrays only), the live solver that
 re-solves while pinned points move (coarse levels first), and the bake of a frame range.
-Nothing is written to Blender's data until a solve has converged."""
+Nothing is written to Blender's data until a solve has converged. Each takes the session
+of its problem from :data:`.sessions.SESSIONS` (built once per mesh and lattice) and hands
+it back when it ends."""
 
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import numpy as np
 
 from .rig import isochor_order
 from .scene import BAKED, RigError, Target
+from .sessions import SESSIONS, problem_key
 
 
 @dataclass
@@ -58,6 +61,7 @@ class Solve:
         self.rig = target.rig(settings.pins, settings.group)
         self.rig.preserve = settings.preserve
         check_pins(self.rig)
+        self.key = problem_key(self.rig)
         self.free = self.rig.written()
         self.read = target.points()  #: the points as the solve read them
         self.stage, self.fraction = "load", 0.0
@@ -75,11 +79,13 @@ class Solve:
 
     def _run(self) -> None:
         try:
-            session = self.rig.session(self.settings.ratio, self._progress)
+            session = SESSIONS.take(self.key, self.rig, self.settings.ratio, self._progress)
             result = session.solve()
             if result.converged:
                 self.nodes = self.rig.shown(session, result.nodes)
             self.result = result
+            session.progress = None
+            SESSIONS.keep(self.key, session)
         except _CancelledError:
             pass
         except Exception as exc:  # handed to the main thread: finish() raises it
@@ -149,7 +155,8 @@ class LiveSolver:
         self.target, self.settings = target, settings
         self.rig = target.rig(settings.pins, settings.group)
         self.rig.preserve = settings.preserve
-        self.session = self.rig.session(settings.ratio)
+        self.key = problem_key(self.rig)
+        self.session = SESSIONS.take(self.key, self.rig, settings.ratio)
         self.steps = None
         self.seen: tuple[bytes, bytes] | None = None
         self.solves = 0  #: solves finished
@@ -190,9 +197,12 @@ class LiveSolver:
         return True
 
     def stop(self) -> None:
+        """Stop solving (a running solve keeps the nodes it last wrote); the session goes
+        back to the cache."""
         if self.steps is not None:
             self.steps.close()
             self.steps = None
+        SESSIONS.keep(self.key, self.session)
 
 
 def bake(target: Target, settings: Settings, start: int, end: int) -> list[float]:
@@ -207,7 +217,7 @@ def bake(target: Target, settings: Settings, start: int, end: int) -> list[float
     if not keyed.any():
         raise RigError("Isochor: no lattice point has keyframes; key the moves to bake first")
     here, solved, errors = scene.frame_current, [], []
-    session, previous = None, None
+    session, key, previous = None, b"", None
     try:
         for frame in range(start, end + 1):
             scene.frame_set(frame)
@@ -216,7 +226,8 @@ def bake(target: Target, settings: Settings, start: int, end: int) -> list[float
             if rig.pinned.all():
                 raise RigError("Isochor: every lattice point is pinned; nothing is free to solve")
             if session is None:
-                session = rig.session(settings.ratio)
+                key = problem_key(rig)
+                session = SESSIONS.take(key, rig, settings.ratio)
             else:
                 rig.load(session)
             if previous is not None:  # warm start: the free points where the frame before left them
@@ -229,6 +240,8 @@ def bake(target: Target, settings: Settings, start: int, end: int) -> list[float
             previous = np.array(result.nodes)
             solved.append((frame, rig.shown(session, previous), rig))
             errors.append(float(result.rel_volume_error))
+        if session is not None:
+            SESSIONS.keep(key, session)
     finally:
         scene.frame_set(here)
     points = target.lattice.data.points

@@ -402,6 +402,42 @@ def test_a_shape_key_at_value_1_is_what_is_solved(addon):
 
 
 @needs_bases
+def test_the_session_is_kept_for_the_same_mesh_and_built_again_when_it_changes(addon):
+    """A second solve of the same mesh and lattice takes the session the first built; a
+    mesh that changed under the modifier (a shape key) or a lattice of another resolution
+    builds a new one, and each solve keeps Blender's volume of what the modifier deforms
+    then (a stale session would keep the old solid's)."""
+    from blender.sessions import SESSIONS
+
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+    SESSIONS.clear()
+    built = SESSIONS.built
+
+    def solved(lift: float) -> None:
+        pin_and_drag(lat, lift)
+        bpy.context.view_layer.update()
+        assert abs(kept(ob) - 1) > 10 * TOL_VOLUME  # the drag alone changes the volume
+        assert bpy.ops.isochor.preserve_volume() == {"FINISHED"}
+        assert abs(kept(ob) - 1) <= TOL_VOLUME + F32_VOLUME
+
+    solved(0.3)
+    assert SESSIONS.built == built + 1
+    solved(0.2)  # the dragged points lifted further: the same problem
+    assert SESSIONS.built == built + 1
+    ob.shape_key_add(name="Basis")
+    key = ob.shape_key_add(name="swell")
+    for point in key.data:
+        if point.co.z > 0:
+            point.co = (point.co.x * 1.3, point.co.y * 1.3, point.co.z * 1.2)
+    key.value = 1.0
+    solved(0.1)
+    assert SESSIONS.built == built + 2
+    lat.data.points_w = 5  # another resolution (Blender puts the points back on the grid)
+    solved(0.3)
+    assert SESSIONS.built == built + 3
+
+
+@needs_bases
 def test_an_armature_then_the_lattice(addon):
     """The usual character stack: an Armature modifier (a posed bone that moves and
     grows the upper half) before the Lattice modifier; the posed shape's volume is kept."""
