@@ -320,6 +320,26 @@ class FoldCheck:
             self._last = (key, dets)
         return dets[: self.n_vertices], dets[self.n_vertices :]
 
+    @property
+    def parameters(self) -> np.ndarray:
+        """(3, m + k) the samples' lattice coordinates, the vertices' first (read-only)."""
+        view = self._uvw_t.view()
+        view.flags.writeable = False
+        return view
+
+    def refresh(self, nodes: np.ndarray, base: np.ndarray, rows: np.ndarray) -> None:
+        """Make det J at ``nodes`` known (for :meth:`determinants` and :meth:`measure`) from
+        ``base``, det J at every sample at other nodes that differ from ``nodes`` only in
+        nodes whose windows hold the samples ``rows`` alone: those are evaluated again,
+        the rest taken as they are (a local release, :mod:`isochor.core.solve.local`)."""
+        dets = np.array(base, dtype=np.float64)
+        rows = np.asarray(rows, dtype=np.intp)
+        if len(rows):
+            uvw = np.ascontiguousarray(self._uvw_t[:, rows])
+            dets[rows] = _determinants(self.lattice, uvw, nodes)
+        dets.flags.writeable = False
+        self._last = (np.asarray(nodes, dtype=np.float64).tobytes(), dets)
+
     def survey(self, nodes: np.ndarray, center: np.ndarray) -> np.ndarray | None:
         """The model's vertices moved by ``nodes``, relative to ``center`` ((3, m)), from the
         pass that finds det J at every sample (kept for :meth:`determinants` and

@@ -9,6 +9,8 @@
 - :mod:`.precondition` the L-BFGS start: springs' Hessian + Gauss-Newton terms, inverted
 - :mod:`.surface`      EmbeddedSurface: the level pyramid in its lattice, per-level caches
 - :mod:`.pyramid`      the QEM level pyramid (fast-simplification), each level checked
+- :mod:`.local`        the local release: a small edit re-solved where it reaches, at full
+  resolution, the rest remembered (not yet called by ``solve``)
 - :mod:`.outcome`      the result measured on the full mesh: a success or not, and why
 - :mod:`.records`      Progress, LevelStats, SolveResult: what a solve yields and returns
 - :mod:`.generators`   ``run_to_end`` / ``relay``: drive a progress generator to its result

@@ -167,6 +167,15 @@ class EmbeddedSurface:
             self._cache["shared"] = last
         return last[1]
 
+    def remember(self, key: str, value) -> None:
+        """Keep ``value`` under ``key`` for a later solve on this surface (None forgets it):
+        the local release's last full-mesh result (:mod:`isochor.core.solve.local`)."""
+        self._cache[("remembered", key)] = value
+
+    def recall(self, key: str):
+        """What :meth:`remember` kept under ``key``, or None."""
+        return self._cache.get(("remembered", key))
+
     @cached_property
     def rest_volume(self) -> float:
         """Volume of the full-resolution mesh as given (the FFD of the rest lattice is the
