@@ -38,7 +38,8 @@ first records), :mod:`~benchmarks.scale` (evaluation at scale, the armadillo),
 lattice), :mod:`~benchmarks.dense_layer` (a whole layer pushed on a dense lattice, a
 Session's re-solve after a nudge, the local kernels, in machine units),
 :mod:`~benchmarks.first_evaluation` (a fresh process's first evaluation while the kernels
-load) and :mod:`~benchmarks.window` (the window's rows),
+load) and :mod:`~benchmarks.window` (the window's rows) with
+:mod:`~benchmarks.stalls` (what the GUI thread does in its long stalls),
 :mod:`~benchmarks.sequences` (keyframed poses),
 :mod:`~benchmarks.blender` (the Blender add-on: first use, against Blender's modifier and
 the command line; run on its own),

@@ -46,6 +46,8 @@ from benchmarks.opening import run_opening, unmeasured
 from benchmarks.scale import ARMADILLO
 from benchmarks.timing import Timing
 
+#: the stall probe explains the gaps longer than this, seconds
+PROBE_OVER = 0.035
 #: how long each drag lasts, seconds
 DRAG_SECONDS = 2.0
 #: the mouse moves this often while dragging, ms
@@ -205,7 +207,11 @@ def _culprit(runs) -> str:
 
 # -- the measurement --------------------------------------------------------------------------
 class Meter:
-    """The largest gap between the ticks of a precise GUI-thread timer, per phase."""
+    """The largest gap between the ticks of a precise GUI-thread timer, per phase; with a
+    :class:`~benchmarks.stalls.StallProbe` in :attr:`probe`, every gap over
+    :data:`PROBE_OVER` is handed to it with the GUI thread's CPU time in the gap."""
+
+    probe = None  #: a running :class:`~benchmarks.stalls.StallProbe`, or None
 
     def __init__(self) -> None:
         from PySide6.QtCore import Qt, QTimer
@@ -216,13 +222,18 @@ class Meter:
         self.timer.timeout.connect(self._tick)
         self.phase = ""
         self.worst: dict[str, float] = {}
+        #: per phase, the GUI thread's own CPU time in its busiest gap (the rest of a gap is
+        #: waiting: for the GIL, or for a core on a shared machine)
+        self.busiest: dict[str, float] = {}
         self._last = time.perf_counter()
+        self._cpu = time.thread_time()
+        self._times = self.probe.tick() if self.probe is not None else {}
         self.aside = None  #: () -> a phase the gap just ended counts for instead, or None
 
     def start(self, phase: str) -> None:
         self.phase = phase
         self.worst.setdefault(phase, 0.0)
-        self._last = time.perf_counter()
+        self._last, self._cpu = time.perf_counter(), time.thread_time()
         if not self.timer.isActive():
             self.timer.start()
 
@@ -232,12 +243,18 @@ class Meter:
         self.worst.setdefault(phase, 0.0)
 
     def _tick(self) -> None:
-        now = time.perf_counter()
-        gap = now - self._last
-        self._last = now
+        now, cpu = time.perf_counter(), time.thread_time()
+        gap, last, used = now - self._last, self._last, cpu - self._cpu
+        self._last, self._cpu = now, cpu
         phase = (self.aside() if self.aside is not None else None) or self.phase
+        if self.probe is not None:
+            times, self._times = self._times, self.probe.tick()
+            if gap > PROBE_OVER:
+                self.probe.gap(last, now, used, phase, times, self._times)
         if gap > self.worst.get(phase, 0.0):
             self.worst[phase] = gap
+        if used > self.busiest.get(phase, 0.0):
+            self.busiest[phase] = used
 
     def stop(self) -> None:
         self._tick()
@@ -387,6 +404,7 @@ def one_drag(app, win, row: int, meter: Meter) -> dict:
         "show": vp.paint_seconds,  # (the last paint: the one that showed the passes)
         "rate": redraws / elapsed,
         "stall": max(meter.worst.get("drag", 0.0), meter.worst.get("release", 0.0)),
+        "stall_cpu": max(meter.busiest.get("drag", 0.0), meter.busiest.get("release", 0.0)),
         "stall_phase": "while dragging" if phase == "drag" else "during the release solve",
         "final": meter.worst.get("final", 0.0),
         "result_gap": meter.worst.get("result", 0.0),
@@ -495,16 +513,32 @@ def main(argv: list[str] | None = None) -> None:
     from isochor.app.view.modeldraw import IDLE_MS
 
     args = sys.argv[1:] if argv is None else argv
+    flags = {a for a in args if a.startswith("--")}
+    args = [a for a in args if not a.startswith("--")]
     repeats = int(args[0]) if args else 3
     models = Path(os.environ.get("ISOCHOR_MODELS", DEFAULT_MODELS))
+    if "--stalls" in flags:  # what the GUI thread does in the long gaps
+        from benchmarks.stalls import StallProbe
+
+        Meter.probe = StallProbe().start()
+    if "--rebuild" in flags:  # the opening and rebuilding rows' gaps instead of the drags
+        from benchmarks.opening import open_and_rebuild
+
+        for _ in range(repeats):
+            r = open_and_rebuild(models / ARMADILLO)
+            print(", ".join(f"{k} {1e3 * v:.0f} ms" for k, v in r.items()))
+        _probe_report()
+        os._exit(0)
     runs = _measure(models / ARMADILLO, repeats)
     for r in runs:
         print(
             f"{'culled' if r['cull'] else 'unculled'}: {r['rate']:.1f} redraws/s, "
             f"full resolution {1e3 * r['final']:.1f} ms (passes {r['passes']}, the longest "
             f"{1e3 * r['longest_pass']:.1f} ms), the result's frame {1e3 * r['result_gap']:.1f} "
-            f"ms, stall {1e3 * r['stall']:.1f} ms"
+            f"ms, stall {1e3 * r['stall']:.1f} ms (GUI thread CPU in the busiest gap "
+            f"{1e3 * r['stall_cpu']:.1f} ms)"
         )
+    _probe_report()
     culled = [r for r in runs if r["cull"]] or runs
     final = float(np.median([r["final"] for r in culled]))
     frame = 1 / float(np.median([r["rate"] for r in culled]))
@@ -512,6 +546,12 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{WHAT_FINAL}: {1e3 * final:.1f} ms against one proxy frame {1e3 * frame:.1f} ms")
     print(_final_reason(culled, IDLE_MS, final, frame) + f" (load {load:.1f})")
     os._exit(0)  # (as the editor: no finalisation of the window's VTK objects)
+
+
+def _probe_report() -> None:
+    if Meter.probe is not None:
+        Meter.probe.stop()
+        print(Meter.probe.report(STALL_TARGET))
 
 
 if __name__ == "__main__":
