@@ -3,7 +3,7 @@
 ``python -m benchmarks.estimate [--sizes 12:4,16:5,24:5,32:5]`` solves an icosphere (``:S``
 its subdivisions: 20 * 4^S triangles) under an ``N x N x N`` B-spline lattice, one face
 node moved and the opposite one pinned, each in a fresh child process, and prints a row per
-size: the estimate, the child's peak resident memory (``ru_maxrss``) and wall time, their
+size: the estimate, the child's peak resident memory (its own map's ``VmHWM``) and wall time, their
 ratios, and MET when each ratio is within the estimate's stated factor
 (:data:`~isochor.core.estimate.MEMORY_FACTOR`, :data:`~isochor.core.estimate.TIME_FACTOR`),
 MISSED otherwise. The machine unit is measured before each child, and the time's ratio
@@ -24,10 +24,9 @@ DEFAULT_SIZES = "12:4,16:5,24:5,32:5"
 
 def child(n: int, subdivisions: int) -> dict:
     """Solve the size in this process; its peak memory and the solve's wall time."""
-    import resource
-
     import trimesh
 
+    from benchmarks.timing import peak_rss_mb
     from isochor.core.api import Session
 
     mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
@@ -38,7 +37,7 @@ def child(n: int, subdivisions: int) -> dict:
     result = session.solve()
     return {
         "seconds": time.perf_counter() - t,
-        "peak": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0,
+        "peak": peak_rss_mb() * 1024.0 * 1024.0,
         "converged": bool(result.converged),
         "triangles": len(mesh.faces),
     }

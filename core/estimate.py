@@ -33,10 +33,11 @@ kept in machine units (the time one thread takes to sum 1 GB of float64, as
 ``benchmarks/machine.py`` defines it) and turned into seconds by this machine's unit.
 
 The constants were fitted to solves measured on the development machine (a child process
-per size: ``ru_maxrss`` and wall time; the figures and the fit are in docs/BENCHMARKS.md,
-``python -m benchmarks.estimate`` measures them again). The estimate is stated to be within
-:data:`MEMORY_FACTOR` of the measured peak and :data:`TIME_FACTOR` of the measured time:
-a solve's time depends on how many steps it takes, which no size predicts better.
+per size: its own peak resident memory and wall time; the figures and the fit are in
+docs/BENCHMARKS.md, ``python -m benchmarks.estimate`` measures them again). The estimate
+is stated to be within :data:`MEMORY_FACTOR` of the measured peak and :data:`TIME_FACTOR`
+of the measured time: a solve's time depends on how many steps it takes, which no size
+predicts better.
 """
 
 from __future__ import annotations

@@ -110,7 +110,7 @@ def test_sizes_of_a_session_and_this_machine():
 
 
 CHILD = """
-import json, resource, sys, trimesh
+import json, sys, trimesh
 from isochor.core.api import Session
 n, s = int(sys.argv[1]), int(sys.argv[2])
 mesh = trimesh.creation.icosphere(subdivisions=s)
@@ -118,7 +118,10 @@ session = Session((mesh.vertices, mesh.faces), lattice=(n, n, n), basis="bspline
 session.move((n - 1, n // 2, n // 2), by=(1.2 / n, 0.0, 0.0))
 session.pin((0, n // 2, n // 2))
 session.solve()
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0
+# VmHWM is this process's own map's peak: ru_maxrss would carry over the size of the
+# pytest process that forked it, since Linux keeps the peak across fork and exec.
+with open("/proc/self/status", encoding="ascii") as f:
+    peak = next(float(l.split()[1]) * 1024.0 for l in f if l.startswith("VmHWM:"))
 print(json.dumps({"peak": peak, "triangles": len(mesh.faces)}))
 """
 
