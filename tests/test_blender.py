@@ -377,17 +377,22 @@ def kept(ob) -> float:
     return blender_volume(ob) / blender_volume(ob, lattice_on=False)
 
 
-@needs_bases
-def test_a_shape_key_at_value_1_is_what_is_solved(addon):
-    """A shape key that swells the top of the ball, at value 1: the modifier deforms the
-    keyed shape, so that is the volume kept (Blender's, not the Basis shape's)."""
-    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+def swell_top(ob) -> None:
+    """Key the ball's top half swollen (x and y by 1.3, z by 1.2), at value 1."""
     ob.shape_key_add(name="Basis")
     key = ob.shape_key_add(name="swell")
     for point in key.data:
         if point.co.z > 0:
             point.co = (point.co.x * 1.3, point.co.y * 1.3, point.co.z * 1.2)
     key.value = 1.0
+
+
+@needs_bases
+def test_a_shape_key_at_value_1_is_what_is_solved(addon):
+    """A shape key that swells the top of the ball, at value 1: the modifier deforms the
+    keyed shape, so that is the volume kept (Blender's, not the Basis shape's)."""
+    ob, lat = rigged((4, 4, 4), "KEY_BSPLINE", subdivisions=3)
+    swell_top(ob)
     bpy.context.view_layer.update()
     keyed = blender_volume(ob, lattice_on=False)
     ob.data.shape_keys.key_blocks["swell"].mute = True
@@ -424,12 +429,7 @@ def test_the_session_is_kept_for_the_same_mesh_and_built_again_when_it_changes(a
     assert SESSIONS.built == built + 1
     solved(0.2)  # the dragged points lifted further: the same problem
     assert SESSIONS.built == built + 1
-    ob.shape_key_add(name="Basis")
-    key = ob.shape_key_add(name="swell")
-    for point in key.data:
-        if point.co.z > 0:
-            point.co = (point.co.x * 1.3, point.co.y * 1.3, point.co.z * 1.2)
-    key.value = 1.0
+    swell_top(ob)
     solved(0.1)
     assert SESSIONS.built == built + 2
     lat.data.points_w = 5  # another resolution (Blender puts the points back on the grid)
